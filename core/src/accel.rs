@@ -1,0 +1,427 @@
+//! Ray queries: an obvhs compressed-wide BVH (CWBVH) over every triangle and sphere of the scene.
+//!
+//! Self-intersection is avoided as in pbrt-v4 (§6.8): each hit carries a conservative bound on
+//! the rounding error of its position, and rays leave a surface from an origin pushed just past
+//! that bound along the normal. The offset scales with the coordinates, so it holds at any scene
+//! scale, unlike a fixed epsilon.
+
+use crate::math::{gamma, next_float_down, next_float_up};
+use crate::scene::shapes::{ShapeGeometry, Sphere};
+use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray as BvhRay, RayHit};
+use obvhs::{Boundable, BvhBuildParams};
+use std::cell::Cell;
+use std::time::Duration;
+
+thread_local! {
+    static RAYS_TRACED: Cell<u64> = const { Cell::new(0) };
+}
+
+/// Number of ray queries made by the calling thread since the last call (for statistics; a
+/// thread-local counter costs no lock).
+pub fn take_ray_count() -> u64 {
+    RAYS_TRACED.with(|c| c.replace(0))
+}
+
+#[inline]
+fn count_ray() {
+    RAYS_TRACED.with(|c| c.set(c.get() + 1));
+}
+
+/// A ray `origin + t · direction`, t in (0, t_max). `direction` need not be unit length.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub direction: Vec3,
+    pub t_max: f32,
+}
+
+/// A ray–surface intersection.
+#[derive(Clone, Copy, Debug)]
+pub struct Intersection {
+    pub t: f32,
+    pub position: Vec3,
+    /// Conservative absolute error bound of `position`, per axis.
+    pub error: Vec3,
+    /// Unit geometric normal, oriented as the shape defines its front side.
+    pub geometric_normal: Vec3,
+    /// Unit shading normal (interpolated vertex normal, or the geometric one), on the same side
+    /// as `geometric_normal`.
+    pub shading_normal: Vec3,
+    /// Index of the shape in the scene.
+    pub shape: u32,
+    /// Index of the triangle within its mesh (0 for spheres).
+    pub primitive: u32,
+}
+
+/// pbrt-v4's OffsetRayOrigin: a point just outside the error box of `p`, on the side of `n`
+/// that `w` points to.
+pub fn offset_ray_origin(p: Vec3, error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.abs().dot(error);
+    let mut offset = d * n;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let mut po = p + offset;
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = next_float_up(po[i]);
+        } else if offset[i] < 0.0 {
+            po[i] = next_float_down(po[i]);
+        }
+    }
+    po
+}
+
+/// Relative shortening of shadow rays, so that the target point's own surface is not reported
+/// as an occluder.
+pub const SHADOW_EPSILON: f32 = 1e-4;
+
+impl Intersection {
+    /// A ray leaving this point in direction `w`.
+    pub fn spawn_ray(&self, w: Vec3) -> Ray {
+        Ray {
+            origin: offset_ray_origin(self.position, self.error, self.geometric_normal, w),
+            direction: w,
+            t_max: f32::INFINITY,
+        }
+    }
+
+    /// A ray from this point to `target` that stops just short of it.
+    pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
+        let origin = offset_ray_origin(
+            self.position,
+            self.error,
+            self.geometric_normal,
+            target - self.position,
+        );
+        Ray {
+            origin,
+            direction: target - origin,
+            t_max: 1.0 - SHADOW_EPSILON,
+        }
+    }
+}
+
+/// A primitive as the BVH leaves store it.
+#[derive(Clone, Copy, Debug)]
+enum Primitive {
+    Triangle {
+        p: [Vec3; 3],
+        shape: u32,
+        index: u32,
+    },
+    Sphere {
+        sphere: Sphere,
+        shape: u32,
+    },
+}
+
+impl Boundable for Primitive {
+    fn aabb(&self) -> Aabb {
+        match self {
+            Primitive::Triangle { p, .. } => {
+                Aabb::from_points(&[p[0].into(), p[1].into(), p[2].into()])
+            }
+            Primitive::Sphere { sphere, .. } => {
+                let r = Vec3A::splat(sphere.radius);
+                let c = Vec3A::from(sphere.center);
+                Aabb::new(c - r, c + r)
+            }
+        }
+    }
+}
+
+/// Per-ray constants of the watertight triangle test (Woop, Benthin, Wald 2013).
+struct RayShear {
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl RayShear {
+    fn new(d: Vec3) -> Self {
+        let a = d.abs();
+        let kz = if a.x > a.y && a.x > a.z {
+            0
+        } else if a.y > a.z {
+            1
+        } else {
+            2
+        };
+        let kx = (kz + 1) % 3;
+        let ky = (kx + 1) % 3;
+        RayShear {
+            kx,
+            ky,
+            kz,
+            sx: -d[kx] / d[kz],
+            sy: -d[ky] / d[kz],
+            sz: 1.0 / d[kz],
+        }
+    }
+}
+
+/// pbrt-v4's watertight ray–triangle test: (t, b0, b1, b2), or None.
+fn intersect_triangle(
+    ray: &Ray,
+    shear: &RayShear,
+    t_max: f32,
+    p: &[Vec3; 3],
+) -> Option<(f32, [f32; 3])> {
+    let RayShear {
+        kx,
+        ky,
+        kz,
+        sx,
+        sy,
+        sz,
+    } = *shear;
+    let permute = |v: Vec3| Vec3::new(v[kx], v[ky], v[kz]);
+    let mut p0 = permute(p[0] - ray.origin);
+    let mut p1 = permute(p[1] - ray.origin);
+    let mut p2 = permute(p[2] - ray.origin);
+    p0.x += sx * p0.z;
+    p0.y += sy * p0.z;
+    p1.x += sx * p1.z;
+    p1.y += sy * p1.z;
+    p2.x += sx * p2.z;
+    p2.y += sy * p2.z;
+    let mut e0 = p1.x * p2.y - p1.y * p2.x;
+    let mut e1 = p2.x * p0.y - p2.y * p0.x;
+    let mut e2 = p0.x * p1.y - p0.y * p1.x;
+    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+        // Exactly on an edge in f32: decide in f64 so neighbours agree.
+        e0 = (p1.x as f64 * p2.y as f64 - p1.y as f64 * p2.x as f64) as f32;
+        e1 = (p2.x as f64 * p0.y as f64 - p2.y as f64 * p0.x as f64) as f32;
+        e2 = (p0.x as f64 * p1.y as f64 - p0.y as f64 * p1.x as f64) as f32;
+    }
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    p0.z *= sz;
+    p1.z *= sz;
+    p2.z *= sz;
+    let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
+    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+        return None;
+    }
+    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    // Reject t that is not provably positive given the rounding error (pbrt-v4 §6.8.4).
+    let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
+    let delta_z = gamma(3) * max_zt;
+    let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
+    let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    if t <= delta_t {
+        return None;
+    }
+    Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
+}
+
+/// The smallest t in (t_min_bound, t_max) where the ray meets the sphere.
+fn intersect_sphere(ray: &Ray, t_max: f32, s: &Sphere) -> Option<f32> {
+    // Ray Tracing Gems, ch. 7: a discriminant that does not cancel catastrophically.
+    let f = ray.origin - s.center;
+    let a = ray.direction.length_squared();
+    let b = -f.dot(ray.direction);
+    let l = f + (b / a) * ray.direction;
+    let disc = a * (s.radius * s.radius - l.length_squared());
+    if disc < 0.0 || a == 0.0 {
+        return None;
+    }
+    let q = b + b.signum() * disc.sqrt();
+    let (mut t0, mut t1) = if q == 0.0 {
+        (0.0, 0.0)
+    } else {
+        (q / a, (f.length_squared() - s.radius * s.radius) / q)
+    };
+    if t0 > t1 {
+        std::mem::swap(&mut t0, &mut t1);
+    }
+    // Roots closer than the rounding error of the computation are the surface the ray left.
+    let t_eps = gamma(16) * (f.length() + s.radius) / a.sqrt();
+    [t0, t1].into_iter().find(|&t| t > t_eps && t < t_max)
+}
+
+/// The scene's surfaces and the BVH over them.
+pub struct Geometry {
+    shapes: Vec<ShapeGeometry>,
+    /// Primitives in BVH leaf order.
+    primitives: Vec<Primitive>,
+    bvh: CwBvh,
+}
+
+impl Geometry {
+    /// Builds the BVH over every triangle and sphere of `shapes` (indexed as given).
+    pub fn new(shapes: Vec<ShapeGeometry>) -> Self {
+        let mut prims = Vec::new();
+        for (shape_index, geometry) in shapes.iter().enumerate() {
+            let shape = shape_index as u32;
+            match geometry {
+                ShapeGeometry::Mesh(mesh) => {
+                    for i in 0..mesh.indices.len() {
+                        let p = mesh.triangle(i);
+                        // Degenerate triangles can never be hit; keep them out of the tree.
+                        if (p[1] - p[0]).cross(p[2] - p[0]) != Vec3::ZERO {
+                            prims.push(Primitive::Triangle {
+                                p,
+                                shape,
+                                index: i as u32,
+                            });
+                        }
+                    }
+                }
+                ShapeGeometry::Sphere(sphere) => prims.push(Primitive::Sphere {
+                    sphere: *sphere,
+                    shape,
+                }),
+            }
+        }
+        let bvh = obvhs::cwbvh::builder::build_cwbvh(
+            &prims,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let primitives = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| prims[i as usize])
+            .collect();
+        Geometry {
+            shapes,
+            primitives,
+            bvh,
+        }
+    }
+
+    pub fn shapes(&self) -> &[ShapeGeometry] {
+        &self.shapes
+    }
+
+    /// Number of primitives in the BVH.
+    pub fn primitive_count(&self) -> usize {
+        self.primitives.len()
+    }
+
+    fn bvh_ray(ray: &Ray) -> BvhRay {
+        BvhRay::new(ray.origin.into(), ray.direction.into(), 0.0, ray.t_max)
+    }
+
+    /// The closest intersection along the ray, if any.
+    pub fn intersect(&self, ray: &Ray) -> Option<Intersection> {
+        count_ray();
+        if self.primitives.is_empty() {
+            return None;
+        }
+        let shear = RayShear::new(ray.direction);
+        let mut hit = RayHit::none();
+        let mut barycentrics = [0.0f32; 3];
+        let found = self
+            .bvh
+            .ray_traverse(Self::bvh_ray(ray), &mut hit, |r, slot| {
+                match &self.primitives[slot] {
+                    Primitive::Triangle { p, .. } => {
+                        match intersect_triangle(ray, &shear, r.tmax, p) {
+                            // The traversal keeps a hit only if it is strictly closer than the best.
+                            Some((t, b)) if t < r.tmax => {
+                                barycentrics = b;
+                                t
+                            }
+                            _ => f32::INFINITY,
+                        }
+                    }
+                    Primitive::Sphere { sphere, .. } => {
+                        intersect_sphere(ray, r.tmax, sphere).unwrap_or(f32::INFINITY)
+                    }
+                }
+            });
+        if !found {
+            return None;
+        }
+        let t = hit.t;
+        Some(match self.primitives[hit.primitive_id as usize] {
+            Primitive::Triangle { p, shape, index } => {
+                let [b0, b1, b2] = barycentrics;
+                let position = b0 * p[0] + b1 * p[1] + b2 * p[2];
+                let error = gamma(7) * ((b0 * p[0]).abs() + (b1 * p[1]).abs() + (b2 * p[2]).abs());
+                let geometric_normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+                let mut shading_normal = geometric_normal;
+                if let ShapeGeometry::Mesh(mesh) = &self.shapes[shape as usize]
+                    && let Some(normals) = &mesh.normals
+                {
+                    let [i0, i1, i2] = mesh.indices[index as usize];
+                    let n = b0 * normals[i0 as usize]
+                        + b1 * normals[i1 as usize]
+                        + b2 * normals[i2 as usize];
+                    if let Some(n) = n.try_normalize() {
+                        shading_normal = if n.dot(geometric_normal) < 0.0 { -n } else { n };
+                    }
+                }
+                Intersection {
+                    t,
+                    position,
+                    error,
+                    geometric_normal,
+                    shading_normal,
+                    shape,
+                    primitive: index,
+                }
+            }
+            Primitive::Sphere { sphere, shape } => {
+                let raw = ray.origin + t * ray.direction;
+                let v = raw - sphere.center;
+                let n = v.normalize();
+                // Reproject onto the sphere, which bounds the error by a few ulps of |v|.
+                let position = sphere.center + n * sphere.radius;
+                let error = gamma(5) * (n * sphere.radius).abs() + gamma(1) * position.abs();
+                Intersection {
+                    t,
+                    position,
+                    error,
+                    geometric_normal: n,
+                    shading_normal: n,
+                    shape,
+                    primitive: 0,
+                }
+            }
+        })
+    }
+
+    /// Whether anything blocks the ray before `t_max`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        count_ray();
+        if self.primitives.is_empty() {
+            return false;
+        }
+        let shear = RayShear::new(ray.direction);
+        !self
+            .bvh
+            .ray_traverse_miss(Self::bvh_ray(ray), |r, slot| match &self.primitives[slot] {
+                Primitive::Triangle { p, .. } => {
+                    intersect_triangle(ray, &shear, r.tmax, p).map_or(f32::INFINITY, |(t, _)| t)
+                }
+                Primitive::Sphere { sphere, .. } => {
+                    intersect_sphere(ray, r.tmax, sphere).unwrap_or(f32::INFINITY)
+                }
+            })
+    }
+}

@@ -1,0 +1,54 @@
+//! The emitter interface: light sources, sampled in solid angle from a reference point.
+
+use crate::math::Rgb;
+use crate::scene::shapes::ShapeGeometry;
+use glam::{Vec2, Vec3};
+
+/// The point being lit.
+#[derive(Clone, Copy, Debug)]
+pub struct ReferencePoint {
+    pub position: Vec3,
+}
+
+/// A point on an emitter that a ray hit.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterHit {
+    pub position: Vec3,
+    /// Geometric normal of the emitting surface (unit, as the shape orients it).
+    pub normal: Vec3,
+    pub distance: f32,
+}
+
+/// One direction toward an emitter drawn by [`Emitter::sample_direction`].
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterSample {
+    /// Unit direction from the reference point toward the emitter.
+    pub wi: Vec3,
+    /// The sampled point on the emitter, for the shadow ray (infinitely far: `None`).
+    pub position: Option<Vec3>,
+    /// Normal at the sampled point (for offsetting the shadow ray's end).
+    pub normal: Vec3,
+    /// Density in solid angle; 1 for delta emitters.
+    pub pdf: f32,
+    /// Radiance arriving along `-wi` (for delta emitters: intensity / distance² or irradiance).
+    pub radiance: Rgb,
+    pub delta: bool,
+}
+
+/// A light source.
+pub trait Emitter: Send + Sync {
+    fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample>;
+    /// The density `sample_direction` has of producing `wi`, which reaches the emitter at `hit`
+    /// (`None` for rays that escape the scene, as for an environment map).
+    fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32;
+    /// Radiance emitted toward the reference point along `-wi`.
+    fn eval(&self, wi: Vec3, hit: Option<&EmitterHit>) -> Rgb;
+    /// Point and directional lights: reached only by their own samples.
+    fn is_delta(&self) -> bool;
+}
+
+/// What an emitter plugin is built from besides its parameters.
+pub struct EmitterContext<'a> {
+    /// The shape the emitter is attached to, for area emitters.
+    pub shape: Option<&'a ShapeGeometry>,
+}

@@ -1,0 +1,173 @@
+//! Image output (multi-layer OpenEXR and an sRGB PNG preview) and EXR input.
+//!
+//! Outputs are written to a temporary file in the target directory and renamed into place,
+//! so an interrupted run never leaves a truncated image.
+
+use crate::film::Film;
+use crate::math::Rgb;
+use exr::prelude::{
+    AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, IntegerBounds, Layer,
+    LayerAttributes, Text, Vec2, WritableImage, read_all_flat_layers_from_file,
+    read_first_rgba_layer_from_file,
+};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+/// An output file could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write `{path}`: {reason}")]
+pub struct OutputError {
+    pub path: PathBuf,
+    pub reason: String,
+}
+
+fn output_error(path: &Path, reason: impl ToString) -> OutputError {
+    OutputError {
+        path: path.to_path_buf(),
+        reason: reason.to_string(),
+    }
+}
+
+/// Writes through `write` into a temporary file beside `path`, then renames it to `path`.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
+) -> Result<(), OutputError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".lumis-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| output_error(path, e))?;
+    write(tmp.as_file_mut()).map_err(|e| output_error(path, e))?;
+    tmp.as_file_mut()
+        .flush()
+        .map_err(|e| output_error(path, e))?;
+    tmp.persist(path).map_err(|e| output_error(path, e.error))?;
+    Ok(())
+}
+
+/// Extra text attributes stored in the EXR header (e.g. the integrator and its settings).
+pub type Metadata = Vec<(String, String)>;
+
+/// Writes colour as channels R, G, B and each AOV as `aov.channel`, in one EXR part whose data
+/// window is the rendered window of the full film.
+pub fn write_exr(film: &Film, path: &Path, metadata: &Metadata) -> Result<(), OutputError> {
+    let size = (film.window.width as usize, film.window.height as usize);
+    let mut channels: Vec<AnyChannel<FlatSamples>> = ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            AnyChannel::new(
+                *name,
+                FlatSamples::F32(film.color.iter().map(|c| c[i]).collect()),
+            )
+        })
+        .collect();
+    for (a, aov) in film.aovs.iter().enumerate() {
+        for (c, channel) in aov.channels.iter().enumerate() {
+            let name = format!("{}.{}", aov.name, channel);
+            channels.push(AnyChannel::new(
+                name.as_str(),
+                FlatSamples::F32(film.aov_channel(a, c).collect()),
+            ));
+        }
+    }
+    let mut attributes = LayerAttributes::default();
+    attributes.layer_position = Vec2(film.window.x as i32, film.window.y as i32);
+    for (key, value) in metadata {
+        attributes.other.insert(
+            Text::from(key.as_str()),
+            AttributeValue::Text(Text::from(value.as_str())),
+        );
+    }
+    let layer = Layer::new(
+        size,
+        attributes,
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window = IntegerBounds::new(
+        (0, 0),
+        (film.full_width as usize, film.full_height as usize),
+    );
+    write_atomically(path, |file| {
+        image
+            .write()
+            .to_buffered(std::io::BufWriter::new(file))
+            .map_err(|e| e.to_string())
+    })
+}
+
+/// The sRGB transfer function.
+pub fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Writes the colour as an 8-bit sRGB PNG, scaled by 2^exposure and clamped.
+pub fn write_png(film: &Film, path: &Path, exposure: f32) -> Result<(), OutputError> {
+    let (w, h) = (film.window.width, film.window.height);
+    let scale = exposure.exp2();
+    let bytes: Vec<u8> = film
+        .color
+        .iter()
+        .flat_map(|c| c.to_array())
+        .map(|v| {
+            let v = if v.is_finite() { v * scale } else { 0.0 };
+            (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
+        })
+        .collect();
+    let image = image::RgbImage::from_raw(w, h, bytes)
+        .ok_or_else(|| output_error(path, "bad image size"))?;
+    write_atomically(path, |file| {
+        image
+            .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
+            .map_err(|e| e.to_string())
+    })
+}
+
+/// An RGB image read from an EXR file, in row order.
+#[derive(Clone, Debug)]
+pub struct RgbImage {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<Rgb>,
+}
+
+/// Reads the first RGB(A) layer of an EXR file; the error names the reason only (callers add
+/// the path and its role).
+pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| RgbImage {
+            width: resolution.width(),
+            height: resolution.height(),
+            pixels: vec![Rgb::ZERO; resolution.area()],
+        },
+        |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            img.pixels[pos.y() * img.width + pos.x()] = Rgb::new(r, g, b);
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(image.layer_data.channel_data.pixels)
+}
+
+/// Every channel of the first layer of an EXR file, by name, as f32 (for tests and tools).
+pub fn read_exr_channels(path: &Path) -> Result<Vec<(String, Vec<f32>)>, String> {
+    let image = read_all_flat_layers_from_file(path).map_err(|e| e.to_string())?;
+    let layer = image.layer_data.first().ok_or("the file has no layer")?;
+    Ok(layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect())
+}

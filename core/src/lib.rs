@@ -1,0 +1,19 @@
+//! lumis-core: the renderer's interfaces and machinery. It contains no plugin: BSDFs, emitters
+//! and integrators live in the plugin crates and register themselves with [`registry`].
+
+pub mod accel;
+pub mod bsdf;
+pub mod camera;
+pub mod emitter;
+pub mod error;
+pub mod film;
+pub mod image_io;
+pub mod integrator;
+pub mod math;
+pub mod params;
+pub mod registry;
+pub mod render;
+pub mod sampler;
+pub mod scene;
+
+pub use inventory;

@@ -1,0 +1,567 @@
+//! Typed plugin parameters: declared once per plugin, checked when a scene is built.
+//!
+//! A plugin declares its parameters as a `&'static [ParamSpec]` (name, type, default, unit, meaning).
+//! That list is the single source of truth: `lumis plugins` prints it, the docs are checked
+//! against it, defaults come from it, and the scene builder refuses parameters it does not name,
+//! values of the wrong type or out of range, and parameters a plugin was given but did not use.
+
+use crate::error::did_you_mean;
+use glam::Vec3;
+use ron::Value;
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// The type of a parameter, with its default (`None`: the parameter is required) and range.
+#[derive(Clone, Copy, Debug)]
+pub enum ParamKind {
+    Float {
+        default: Option<f32>,
+        min: f32,
+        max: f32,
+    },
+    Int {
+        default: Option<i64>,
+        min: i64,
+        max: i64,
+    },
+    Bool {
+        default: Option<bool>,
+    },
+    /// Linear RGB: `(r, g, b)` or one number for grey.
+    Rgb {
+        default: Option<[f32; 3]>,
+    },
+    Vec3 {
+        default: Option<[f32; 3]>,
+    },
+    /// A pair `(lo, hi)` with lo <= hi, both in [min, max].
+    Interval {
+        default: [f32; 2],
+        min: f32,
+        max: f32,
+    },
+    Str {
+        default: Option<&'static str>,
+    },
+    /// A path, resolved relative to the scene file.
+    Path,
+    Choice {
+        options: &'static [&'static str],
+        default: &'static str,
+    },
+}
+
+/// One declared parameter of a plugin.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub kind: ParamKind,
+    /// Physical unit, or "" for dimensionless values.
+    pub unit: &'static str,
+    pub description: &'static str,
+}
+
+impl ParamSpec {
+    /// The type as written in docs: `float`, `rgb`, ...
+    pub fn type_name(&self) -> &'static str {
+        match self.kind {
+            ParamKind::Float { .. } => "float",
+            ParamKind::Int { .. } => "integer",
+            ParamKind::Bool { .. } => "bool",
+            ParamKind::Rgb { .. } => "rgb",
+            ParamKind::Vec3 { .. } => "vector",
+            ParamKind::Interval { .. } => "interval",
+            ParamKind::Str { .. } => "string",
+            ParamKind::Path => "path",
+            ParamKind::Choice { .. } => "choice",
+        }
+    }
+
+    /// The default as RON text, or "required".
+    pub fn default_text(&self) -> String {
+        let triple = |v: [f32; 3]| format!("({}, {}, {})", v[0], v[1], v[2]);
+        match self.kind {
+            ParamKind::Float {
+                default: Some(v), ..
+            } => format!("{v}"),
+            ParamKind::Int {
+                default: Some(v), ..
+            } => format!("{v}"),
+            ParamKind::Bool { default: Some(v) } => format!("{v}"),
+            ParamKind::Rgb { default: Some(v) } | ParamKind::Vec3 { default: Some(v) } => triple(v),
+            ParamKind::Interval { default, .. } => format!("({}, {})", default[0], default[1]),
+            ParamKind::Str { default: Some(v) } => format!("{v:?}"),
+            ParamKind::Choice { default, .. } => format!("{default:?}"),
+            _ => "required".to_string(),
+        }
+    }
+
+    /// Valid values, for docs: a range or the list of choices.
+    pub fn range_text(&self) -> String {
+        match self.kind {
+            ParamKind::Float { min, max, .. } | ParamKind::Interval { min, max, .. } => {
+                let hi = if max.is_infinite() {
+                    "∞)".to_string()
+                } else {
+                    format!("{max}]")
+                };
+                format!("[{min}, {hi}")
+            }
+            ParamKind::Int { min, max, .. } => format!("[{min}, {max}]"),
+            ParamKind::Choice { options, .. } => options.join(" | "),
+            _ => String::new(),
+        }
+    }
+}
+
+/// What went wrong with a plugin's parameters or construction.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PluginError {
+    #[error("unknown parameter `{name}`{suggestion}; {plugin} takes: {valid}")]
+    Unknown {
+        plugin: String,
+        name: String,
+        suggestion: String,
+        valid: String,
+    },
+    #[error("parameter `{name}` is not used by {plugin}: {why}")]
+    Unused {
+        plugin: String,
+        name: String,
+        why: String,
+    },
+    #[error("parameter `{name}` of {plugin} expects {expected}, found {found}")]
+    WrongType {
+        plugin: String,
+        name: String,
+        expected: String,
+        found: String,
+    },
+    #[error("parameter `{name}` of {plugin} is required ({expected})")]
+    Missing {
+        plugin: String,
+        name: String,
+        expected: String,
+    },
+    #[error("parameter `{name}` of {plugin} must be in {range}, found {found}")]
+    OutOfRange {
+        plugin: String,
+        name: String,
+        range: String,
+        found: String,
+    },
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// The parameters given to one plugin instance, with use tracking.
+pub struct Params {
+    plugin: String,
+    specs: &'static [ParamSpec],
+    values: BTreeMap<String, Value>,
+    used: Vec<String>,
+}
+
+/// A short description of a RON value, for "found ..." messages.
+pub fn describe_value(v: &Value) -> String {
+    match v {
+        Value::Bool(b) => format!("the bool {b}"),
+        Value::Char(c) => format!("the char {c:?}"),
+        Value::Map(_) => "a map or struct".into(),
+        Value::Number(n) => format!("the number {}", n.into_f64()),
+        Value::Option(None) => "None".into(),
+        Value::Option(Some(inner)) => format!("Some({})", describe_value(inner)),
+        Value::String(s) => format!("the string {s:?}"),
+        Value::Bytes(_) => "bytes".into(),
+        Value::Seq(s) => format!("a tuple or list of {} elements", s.len()),
+        Value::Unit => "()".into(),
+    }
+}
+
+fn as_f32(v: &Value) -> Option<f32> {
+    match v {
+        Value::Number(n) => Some(n.into_f64() as f32),
+        _ => None,
+    }
+}
+
+fn as_triple(v: &Value) -> Option<[f32; 3]> {
+    match v {
+        Value::Seq(s) if s.len() == 3 => {
+            let mut out = [0.0; 3];
+            for (o, x) in out.iter_mut().zip(s) {
+                *o = as_f32(x)?;
+            }
+            Some(out)
+        }
+        _ => None,
+    }
+}
+
+impl Params {
+    /// Checks every given name against the plugin's declared parameters.
+    /// `plugin` names the instance for messages, e.g. "bsdf `red` (diffuse)".
+    pub fn new(
+        plugin: impl Into<String>,
+        specs: &'static [ParamSpec],
+        values: BTreeMap<String, Value>,
+    ) -> Result<Self, PluginError> {
+        let plugin = plugin.into();
+        for name in values.keys() {
+            if !specs.iter().any(|s| s.name == name) {
+                let valid = if specs.is_empty() {
+                    "no parameters".to_string()
+                } else {
+                    specs
+                        .iter()
+                        .map(|s| format!("`{}`", s.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                return Err(PluginError::Unknown {
+                    plugin,
+                    name: name.clone(),
+                    suggestion: did_you_mean(name, specs.iter().map(|s| s.name)),
+                    valid,
+                });
+            }
+        }
+        Ok(Params {
+            plugin,
+            specs,
+            values,
+            used: Vec::new(),
+        })
+    }
+
+    /// The instance description used in messages.
+    pub fn plugin(&self) -> &str {
+        &self.plugin
+    }
+
+    /// Whether the scene gave this parameter explicitly.
+    pub fn is_given(&self, name: &str) -> bool {
+        self.values.contains_key(name)
+    }
+
+    fn spec(&self, name: &str) -> &'static ParamSpec {
+        self.specs
+            .iter()
+            .find(|s| s.name == name)
+            .unwrap_or_else(|| {
+                panic!(
+                    "{} reads parameter `{name}` it does not declare",
+                    self.plugin
+                )
+            })
+    }
+
+    /// The declaration and the given value (cloned: values are a few numbers), marking it used.
+    fn take(&mut self, name: &str) -> (&'static ParamSpec, Option<Value>) {
+        let spec = self.spec(name);
+        if !self.used.iter().any(|u| u == name) {
+            self.used.push(name.to_string());
+        }
+        (spec, self.values.get(name).cloned())
+    }
+
+    fn wrong_type(&self, name: &str, expected: &str, found: &Value) -> PluginError {
+        PluginError::WrongType {
+            plugin: self.plugin.clone(),
+            name: name.to_string(),
+            expected: expected.to_string(),
+            found: describe_value(found),
+        }
+    }
+
+    fn missing(&self, spec: &ParamSpec, expected: &str) -> PluginError {
+        PluginError::Missing {
+            plugin: self.plugin.clone(),
+            name: spec.name.to_string(),
+            expected: expected.to_string(),
+        }
+    }
+
+    fn out_of_range(&self, spec: &ParamSpec, found: String) -> PluginError {
+        PluginError::OutOfRange {
+            plugin: self.plugin.clone(),
+            name: spec.name.to_string(),
+            range: spec.range_text(),
+            found,
+        }
+    }
+
+    pub fn float(&mut self, name: &str) -> Result<f32, PluginError> {
+        let (spec, value) = self.take(name);
+        let value = value.as_ref();
+        let ParamKind::Float { default, min, max } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a float");
+        };
+        let v = match value {
+            None => default.ok_or_else(|| self.missing(spec, "a number"))?,
+            Some(v) => as_f32(v).ok_or_else(|| self.wrong_type(name, "a number", v))?,
+        };
+        if !(v >= min && v <= max && v.is_finite()) {
+            return Err(self.out_of_range(spec, v.to_string()));
+        }
+        Ok(v)
+    }
+
+    pub fn int(&mut self, name: &str) -> Result<i64, PluginError> {
+        let (spec, value) = self.take(name);
+        let value = value.as_ref();
+        let ParamKind::Int { default, min, max } = spec.kind else {
+            panic!("parameter `{name}` is not declared as an integer");
+        };
+        let v = match value {
+            None => default.ok_or_else(|| self.missing(spec, "an integer"))?,
+            Some(Value::Number(n)) if n.into_f64().fract() == 0.0 => n.into_f64() as i64,
+            Some(v) => return Err(self.wrong_type(name, "an integer", v)),
+        };
+        if !(min..=max).contains(&v) {
+            return Err(self.out_of_range(spec, v.to_string()));
+        }
+        Ok(v)
+    }
+
+    pub fn bool(&mut self, name: &str) -> Result<bool, PluginError> {
+        let (spec, value) = self.take(name);
+        let value = value.as_ref();
+        let ParamKind::Bool { default } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a bool");
+        };
+        match value {
+            None => default.ok_or_else(|| self.missing(spec, "true or false")),
+            Some(Value::Bool(b)) => Ok(*b),
+            Some(v) => Err(self.wrong_type(name, "true or false", v)),
+        }
+    }
+
+    /// A non-negative, finite linear RGB colour.
+    pub fn rgb(&mut self, name: &str) -> Result<Vec3, PluginError> {
+        let (spec, value) = self.take(name);
+        let value = value.as_ref();
+        let ParamKind::Rgb { default } = spec.kind else {
+            panic!("parameter `{name}` is not declared as rgb");
+        };
+        const EXPECTED: &str = "an RGB triple (r, g, b) or one number";
+        let c = match value {
+            None => default.ok_or_else(|| self.missing(spec, EXPECTED))?,
+            Some(v) => match (as_f32(v), as_triple(v)) {
+                (Some(grey), _) => [grey; 3],
+                (_, Some(t)) => t,
+                _ => return Err(self.wrong_type(name, EXPECTED, v)),
+            },
+        };
+        if c.iter().any(|x| !x.is_finite() || *x < 0.0) {
+            return Err(PluginError::OutOfRange {
+                plugin: self.plugin.clone(),
+                name: name.to_string(),
+                range: "finite, non-negative values".into(),
+                found: format!("{c:?}"),
+            });
+        }
+        Ok(Vec3::from(c))
+    }
+
+    /// A finite 3D vector.
+    pub fn vec3(&mut self, name: &str) -> Result<Vec3, PluginError> {
+        let (spec, value) = self.take(name);
+        let value = value.as_ref();
+        let ParamKind::Vec3 { default } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a vector");
+        };
+        const EXPECTED: &str = "a vector (x, y, z)";
+        let v = match value {
+            None => default.ok_or_else(|| self.missing(spec, EXPECTED))?,
+            Some(v) => as_triple(v).ok_or_else(|| self.wrong_type(name, EXPECTED, v))?,
+        };
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(self.out_of_range(spec, format!("{v:?}")));
+        }
+        Ok(Vec3::from(v))
+    }
+
+    /// An interval (lo, hi) with min <= lo <= hi <= max.
+    pub fn interval(&mut self, name: &str) -> Result<[f32; 2], PluginError> {
+        let (spec, value) = self.take(name);
+        let value = value.as_ref();
+        let ParamKind::Interval { default, min, max } = spec.kind else {
+            panic!("parameter `{name}` is not declared as an interval");
+        };
+        let v = match value {
+            None => default,
+            Some(v @ Value::Seq(s)) if s.len() == 2 => match (as_f32(&s[0]), as_f32(&s[1])) {
+                (Some(lo), Some(hi)) => [lo, hi],
+                _ => return Err(self.wrong_type(name, "an interval (lo, hi)", v)),
+            },
+            Some(v) => return Err(self.wrong_type(name, "an interval (lo, hi)", v)),
+        };
+        if !(v[0] >= min && v[0] <= v[1] && v[1] <= max) {
+            return Err(self.out_of_range(spec, format!("({}, {})", v[0], v[1])));
+        }
+        Ok(v)
+    }
+
+    fn string_value(&mut self, name: &str) -> Result<Option<String>, PluginError> {
+        let (_, value) = self.take(name);
+        let value = value.as_ref();
+        match value {
+            None => Ok(None),
+            Some(Value::String(s)) => Ok(Some(s.clone())),
+            Some(v) => Err(self.wrong_type(name, "a string", v)),
+        }
+    }
+
+    pub fn string(&mut self, name: &str) -> Result<String, PluginError> {
+        let spec = self.spec(name);
+        let ParamKind::Str { default } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a string");
+        };
+        match self.string_value(name)? {
+            Some(s) => Ok(s),
+            None => default
+                .map(str::to_string)
+                .ok_or_else(|| self.missing(spec, "a string")),
+        }
+    }
+
+    /// A required path, as written (the caller resolves it against the scene directory).
+    pub fn path(&mut self, name: &str) -> Result<String, PluginError> {
+        let spec = self.spec(name);
+        assert!(
+            matches!(spec.kind, ParamKind::Path),
+            "parameter `{name}` is not declared as a path"
+        );
+        self.string_value(name)?
+            .ok_or_else(|| self.missing(spec, "a file path"))
+    }
+
+    /// One of the declared options.
+    pub fn choice(&mut self, name: &str) -> Result<&'static str, PluginError> {
+        let spec = self.spec(name);
+        let ParamKind::Choice { options, default } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a choice");
+        };
+        let Some(given) = self.string_value(name)? else {
+            return Ok(default);
+        };
+        options
+            .iter()
+            .copied()
+            .find(|o| *o == given)
+            .ok_or_else(|| PluginError::OutOfRange {
+                plugin: self.plugin.clone(),
+                name: name.to_string(),
+                range: format!("one of {}", options.join(", ")),
+                found: format!("{given:?}{}", did_you_mean(&given, options.iter().copied())),
+            })
+    }
+
+    /// Fails if a parameter was given but never read by the plugin (e.g. it does not apply to
+    /// the chosen mode); `why` explains in the plugin's words.
+    pub fn finish(self) -> Result<(), PluginError> {
+        for name in self.values.keys() {
+            if !self.used.iter().any(|u| u == name) {
+                return Err(PluginError::Unused {
+                    plugin: self.plugin.clone(),
+                    name: name.clone(),
+                    why: "it has no effect with the other settings given".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Debug for Params {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Params")
+            .field("plugin", &self.plugin)
+            .field("values", &self.values)
+            .finish()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    static SPECS: &[ParamSpec] = &[
+        ParamSpec {
+            name: "roughness",
+            kind: ParamKind::Float {
+                default: Some(0.1),
+                min: 1e-4,
+                max: 1.0,
+            },
+            unit: "",
+            description: "GGX alpha",
+        },
+        ParamSpec {
+            name: "reflectance",
+            kind: ParamKind::Rgb {
+                default: Some([0.5; 3]),
+            },
+            unit: "",
+            description: "albedo",
+        },
+        ParamSpec {
+            name: "samples",
+            kind: ParamKind::Int {
+                default: None,
+                min: 1,
+                max: 1 << 20,
+            },
+            unit: "",
+            description: "N",
+        },
+    ];
+
+    fn params(text: &str) -> Result<Params, PluginError> {
+        let map: BTreeMap<String, Value> = ron::from_str(text).unwrap();
+        Params::new("bsdf `x` (test)", SPECS, map)
+    }
+
+    #[test]
+    fn unknown_names_are_refused_with_a_suggestion() {
+        let e = params(r#"{"roughnes": 0.2}"#).unwrap_err().to_string();
+        assert!(e.contains("unknown parameter `roughnes`"), "{e}");
+        assert!(e.contains("did you mean `roughness`"), "{e}");
+        assert!(e.contains("bsdf `x` (test)"), "{e}");
+    }
+
+    #[test]
+    fn defaults_types_and_ranges() {
+        let mut p = params(r#"{"reflectance": 0.25, "samples": 8}"#).unwrap();
+        assert_eq!(p.float("roughness").unwrap(), 0.1);
+        assert_eq!(p.rgb("reflectance").unwrap(), Vec3::splat(0.25));
+        assert_eq!(p.int("samples").unwrap(), 8);
+        p.finish().unwrap();
+
+        let mut p = params(r#"{"roughness": "big"}"#).unwrap();
+        let e = p.float("roughness").unwrap_err().to_string();
+        assert!(
+            e.contains("expects a number, found the string \"big\""),
+            "{e}"
+        );
+
+        let mut p = params(r#"{"roughness": 2.0}"#).unwrap();
+        let e = p.float("roughness").unwrap_err().to_string();
+        assert!(e.contains("must be in [0.0001, 1]"), "{e}");
+
+        let mut p = params(r#"{}"#).unwrap();
+        assert!(matches!(p.int("samples"), Err(PluginError::Missing { .. })));
+
+        let mut p = params(r#"{"reflectance": (1, -1, 0)}"#).unwrap();
+        assert!(p.rgb("reflectance").is_err());
+    }
+
+    #[test]
+    fn given_but_unread_parameters_are_reported() {
+        let mut p = params(r#"{"roughness": 0.3, "samples": 3}"#).unwrap();
+        p.float("roughness").unwrap();
+        let e = p.finish().unwrap_err().to_string();
+        assert!(e.contains("`samples` is not used"), "{e}");
+    }
+}

@@ -1,0 +1,170 @@
+//! Plugin registries. Each built-in plugin registers itself from its own file:
+//!
+//! ```ignore
+//! inventory::submit! { BsdfPlugin { name: "diffuse", description: "...", params: PARAMS, create } }
+//! ```
+//!
+//! The facade crate links every plugin crate so the linker keeps these registrations.
+
+use crate::bsdf::Bsdf;
+use crate::emitter::{Emitter, EmitterContext};
+use crate::error::did_you_mean;
+use crate::integrator::Integrator;
+use crate::params::{ParamSpec, Params, PluginError};
+use std::sync::Arc;
+
+pub struct BsdfPlugin {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub params: &'static [ParamSpec],
+    pub create: fn(&mut Params) -> Result<Arc<dyn Bsdf>, PluginError>,
+}
+
+pub struct EmitterPlugin {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub params: &'static [ParamSpec],
+    pub create: fn(&mut Params, &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError>,
+}
+
+pub struct IntegratorPlugin {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub params: &'static [ParamSpec],
+    pub create: fn(&mut Params) -> Result<Box<dyn Integrator>, PluginError>,
+}
+
+inventory::collect!(BsdfPlugin);
+inventory::collect!(EmitterPlugin);
+inventory::collect!(IntegratorPlugin);
+
+/// Name, description and parameters, common to the three kinds.
+pub trait PluginInfo {
+    const KIND: &'static str;
+    fn name(&self) -> &'static str;
+    fn description(&self) -> &'static str;
+    fn params(&self) -> &'static [ParamSpec];
+}
+
+macro_rules! plugin_info {
+    ($t:ty, $kind:literal) => {
+        impl PluginInfo for $t {
+            const KIND: &'static str = $kind;
+            fn name(&self) -> &'static str {
+                self.name
+            }
+            fn description(&self) -> &'static str {
+                self.description
+            }
+            fn params(&self) -> &'static [ParamSpec] {
+                self.params
+            }
+        }
+    };
+}
+plugin_info!(BsdfPlugin, "bsdf");
+plugin_info!(EmitterPlugin, "emitter");
+plugin_info!(IntegratorPlugin, "integrator");
+
+/// All plugins of one kind that are registered, sorted by name.
+pub fn plugins<P: PluginInfo + inventory::Collect>() -> Vec<&'static P> {
+    let mut v: Vec<&'static P> = inventory::iter::<P>.into_iter().collect();
+    v.sort_by_key(|p| p.name());
+    v
+}
+
+/// The plugin of that kind and name, or an error listing the known ones and the closest name.
+pub fn find<P: PluginInfo + inventory::Collect>(name: &str) -> Result<&'static P, String> {
+    let all = plugins::<P>();
+    all.iter()
+        .copied()
+        .find(|p| p.name() == name)
+        .ok_or_else(|| {
+            let known: Vec<&str> = all.iter().map(|p| p.name()).collect();
+            format!(
+                "unknown {} plugin `{name}`{}; known {} plugins: {}",
+                P::KIND,
+                did_you_mean(name, known.iter().copied()),
+                P::KIND,
+                known.join(", ")
+            )
+        })
+}
+
+fn param_line(p: &ParamSpec) -> String {
+    let unit = if p.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" [{}]", p.unit)
+    };
+    let range = p.range_text();
+    let range = if range.is_empty() {
+        String::new()
+    } else {
+        format!(", valid: {range}")
+    };
+    format!(
+        "    {:<14} {:<9} default {}{}{} — {}\n",
+        p.name,
+        p.type_name(),
+        p.default_text(),
+        range,
+        unit,
+        p.description
+    )
+}
+
+fn section_text<P: PluginInfo + inventory::Collect>(title: &str) -> String {
+    let mut s = format!("{title}:\n");
+    for p in plugins::<P>() {
+        s += &format!("  {} — {}\n", p.name(), p.description());
+        for param in p.params() {
+            s += &param_line(param);
+        }
+    }
+    s
+}
+
+/// Every registered plugin with its parameters, as plain text (`lumis plugins`).
+pub fn plugins_text() -> String {
+    [
+        section_text::<BsdfPlugin>("BSDFs"),
+        section_text::<EmitterPlugin>("Emitters"),
+        section_text::<IntegratorPlugin>("Integrators"),
+    ]
+    .join("\n")
+}
+
+fn section_markdown<P: PluginInfo + inventory::Collect>(title: &str) -> String {
+    let mut s = format!("## {title}\n");
+    for p in plugins::<P>() {
+        s += &format!("\n### `{}`\n\n{}\n\n", p.name(), p.description());
+        if p.params().is_empty() {
+            s += "No parameters.\n";
+            continue;
+        }
+        s += "| parameter | type | default | valid | unit | meaning |\n|---|---|---|---|---|---|\n";
+        for q in p.params() {
+            s += &format!(
+                "| `{}` | {} | `{}` | {} | {} | {} |\n",
+                q.name,
+                q.type_name(),
+                q.default_text(),
+                q.range_text(),
+                q.unit,
+                q.description
+            );
+        }
+    }
+    s
+}
+
+/// The plugin reference as Markdown (`lumis plugins --markdown`, stored as docs/plugins.md).
+pub fn plugins_markdown() -> String {
+    format!(
+        "# Plugin reference\n\nGenerated by `lumis plugins --markdown`; a test checks that this file is current.\n\n{}\n{}\n{}",
+        section_markdown::<BsdfPlugin>("BSDFs"),
+        section_markdown::<EmitterPlugin>("Emitters"),
+        section_markdown::<IntegratorPlugin>("Integrators")
+    )
+}

@@ -1,0 +1,178 @@
+//! glTF 2.0 import (`.gltf` with external or embedded buffers, and `.glb`): triangle meshes with
+//! node transforms and, when present, vertex normals. Textures and materials are not read:
+//! materials come from the scene file, and no scene uses textures.
+
+use super::shapes::Mesh;
+use base64::Engine;
+use glam::{Mat4, Vec3};
+use gltf::mesh::Mode;
+use std::path::Path;
+
+/// Loads the triangles of a glTF file in its scene's coordinates (node transforms applied).
+/// With `only`, keeps the node of that name (with its children) or else the mesh of that name.
+pub fn load(path: &Path, only: Option<&str>) -> Result<Mesh, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read glTF file: {e}"))?;
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not a valid glTF file: {e}"))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = load_buffers(&gltf, base)?;
+    let doc = &gltf.document;
+
+    let mut mesh = Mesh::default();
+    let mut found = only.is_none();
+    let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(scene) => scene.nodes().collect(),
+        None => doc.nodes().collect(),
+    };
+    let mut stack: Vec<(gltf::Node, Mat4, bool)> = roots
+        .into_iter()
+        .map(|n| (n, Mat4::IDENTITY, only.is_none()))
+        .collect();
+    let mut visited = 0usize;
+    while let Some((node, parent, selected)) = stack.pop() {
+        visited += 1;
+        if visited > doc.nodes().len() * 4 + 16 {
+            return Err("the node hierarchy has a cycle".into());
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let selected = selected
+            || only.is_some_and(|name| {
+                node.name() == Some(name) || node.mesh().and_then(|m| m.name()) == Some(name)
+            });
+        found |= selected;
+        if selected && let Some(m) = node.mesh() {
+            mesh.append(read_mesh(&m, &buffers)?.transformed(&world));
+        }
+        stack.extend(node.children().map(|c| (c, world, selected)));
+    }
+    if !found {
+        let mut names: Vec<&str> = doc.nodes().filter_map(|n| n.name()).collect();
+        names.extend(doc.meshes().filter_map(|m| m.name()));
+        names.sort_unstable();
+        names.dedup();
+        let name = only.unwrap_or_default();
+        return Err(format!(
+            "no node or mesh named `{name}`{}; names in the file: {}",
+            crate::error::did_you_mean(name, names.iter().copied()),
+            if names.is_empty() {
+                "none".to_string()
+            } else {
+                names.join(", ")
+            }
+        ));
+    }
+    if mesh.indices.is_empty() {
+        return Err("the file has no triangles".into());
+    }
+    Ok(mesh)
+}
+
+fn load_buffers(gltf: &gltf::Gltf, base: &Path) -> Result<Vec<Vec<u8>>, String> {
+    let mut out = Vec::new();
+    for buffer in gltf.document.buffers() {
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or("buffer refers to the binary chunk, but the file has none")?,
+            gltf::buffer::Source::Uri(uri) => {
+                if let Some(rest) = uri.strip_prefix("data:") {
+                    let (_, payload) = rest
+                        .split_once(";base64,")
+                        .ok_or("only base64 data URIs are supported for buffers")?;
+                    base64::engine::general_purpose::STANDARD
+                        .decode(payload)
+                        .map_err(|e| format!("buffer {}: invalid base64: {e}", buffer.index()))?
+                } else {
+                    let file = base.join(uri.replace("%20", " "));
+                    std::fs::read(&file)
+                        .map_err(|e| format!("cannot read buffer `{}`: {e}", file.display()))?
+                }
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(format!(
+                "buffer {} holds {} bytes, fewer than the {} it declares",
+                buffer.index(),
+                data.len(),
+                buffer.length()
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Mesh, String> {
+    let label = m
+        .name()
+        .map(|n| format!("mesh `{n}`"))
+        .unwrap_or(format!("mesh {}", m.index()));
+    let mut mesh = Mesh::default();
+    for prim in m.primitives() {
+        // Points and lines have no area: nothing to render.
+        if !matches!(
+            prim.mode(),
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            continue;
+        }
+        for (_, accessor) in prim.attributes() {
+            if accessor.count() == 0 {
+                return Err(format!("{label}: an attribute accessor is empty"));
+            }
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+        let positions: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| format!("{label}: positions are missing or outside their buffer"))?
+            .map(Vec3::from)
+            .collect();
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(format!("{label}: a vertex position is not finite"));
+        }
+        let normals: Option<Vec<Vec3>> = reader
+            .read_normals()
+            .map(|it| it.map(|n| Vec3::from(n).normalize_or_zero()).collect());
+        let normals =
+            normals.filter(|n| n.len() == positions.len() && n.iter().all(|v| v.is_finite()));
+        let indices: Vec<u32> = match prim.indices() {
+            Some(acc) if acc.count() == 0 => Vec::new(),
+            Some(_) => reader
+                .read_indices()
+                .ok_or_else(|| format!("{label}: indices lie outside their buffer"))?
+                .into_u32()
+                .collect(),
+            None => (0..positions.len() as u32).collect(),
+        };
+        if let Some(bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(format!(
+                "{label}: index {bad} is out of range for {} vertices",
+                positions.len()
+            ));
+        }
+        let triangles: Vec<[u32; 3]> = match prim.mode() {
+            Mode::TriangleStrip => (2..indices.len())
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [indices[i - 2], indices[i - 1], indices[i]]
+                    } else {
+                        [indices[i - 1], indices[i - 2], indices[i]]
+                    }
+                })
+                .collect(),
+            Mode::TriangleFan => (2..indices.len())
+                .map(|i| [indices[0], indices[i - 1], indices[i]])
+                .collect(),
+            _ => indices
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
+        };
+        mesh.append(Mesh {
+            positions,
+            normals,
+            indices: triangles,
+        });
+    }
+    Ok(mesh)
+}

@@ -1,0 +1,351 @@
+//! Builds a [`Scene`] from a RON file: parse, apply overrides, then construct every part by name
+//! through the registries. Every problem becomes a [`SceneError`] naming the file.
+
+use super::description::{PluginSpec, SceneDescription, ShapeDescription};
+use super::overrides::Override;
+use super::shapes::{self, ShapeGeometry, Sphere};
+use super::{Scene, gltf};
+use crate::accel::Geometry;
+use crate::bsdf::Bsdf;
+use crate::camera::Camera;
+use crate::emitter::{Emitter, EmitterContext};
+use crate::error::{SceneError, did_you_mean};
+use crate::film::Window;
+use crate::integrator::Integrator;
+use crate::params::Params;
+use crate::registry::{self, BsdfPlugin, EmitterPlugin, IntegratorPlugin};
+use glam::Vec3;
+use ron::Value;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A built scene with the integrator that renders it.
+pub struct LoadedScene {
+    pub scene: Scene,
+    pub integrator: Box<dyn Integrator>,
+    /// The description after overrides, as built.
+    pub description: SceneDescription,
+}
+
+/// Reads, parses and builds the scene file at `path`, with `--set` overrides applied.
+pub fn load_scene(path: &Path, overrides: &[String]) -> Result<LoadedScene, SceneError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| SceneError::new(path, format!("cannot read scene file: {e}")))?;
+    let description = parse_description(path, &text, overrides)?;
+    build_scene(description, path)
+}
+
+fn syntax_error(path: &Path, e: ron::error::SpannedError) -> SceneError {
+    SceneError::at(
+        path,
+        e.span.start.line,
+        e.span.start.col,
+        e.code.to_string(),
+    )
+}
+
+/// Parses scene text; `path` is used for messages only.
+pub fn parse_description(
+    path: &Path,
+    text: &str,
+    overrides: &[String],
+) -> Result<SceneDescription, SceneError> {
+    // Parse the text as written first, so that its errors carry line and column.
+    let description: SceneDescription = ron::from_str(text).map_err(|e| syntax_error(path, e))?;
+    if overrides.is_empty() {
+        return Ok(description);
+    }
+    let mut doc: Value = ron::from_str(text).map_err(|e| syntax_error(path, e))?;
+    for text in overrides {
+        let o = Override::parse(text).map_err(|e| SceneError::new(path, e))?;
+        o.apply(&mut doc).map_err(|e| SceneError::new(path, e))?;
+    }
+    doc.into_rust().map_err(|e| {
+        SceneError::new(
+            path,
+            format!(
+                "after applying the --set overrides ({}): {e}",
+                overrides.join(", ")
+            ),
+        )
+    })
+}
+
+/// Builds the renderable scene; relative paths are resolved against the scene file's directory.
+pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, SceneError> {
+    let err = |msg: String| SceneError::new(path, msg);
+    let base = path.parent().unwrap_or(Path::new(""));
+
+    if !desc.plugins.is_empty() {
+        let library = base.join(&desc.plugins[0]);
+        return Err(err(format!(
+            "run-time plugin library `{}`: loading plugin libraries is not supported by this build yet",
+            library.display()
+        )));
+    }
+
+    let film = &desc.film;
+    if film.width == 0 || film.height == 0 || film.width > 1 << 16 || film.height > 1 << 16 {
+        return Err(err(format!(
+            "film size {}x{} is invalid: width and height must be in 1..=65536",
+            film.width, film.height
+        )));
+    }
+    let window = match film.crop {
+        None => Window {
+            x: 0,
+            y: 0,
+            width: film.width,
+            height: film.height,
+        },
+        Some(c) => {
+            if c.width == 0
+                || c.height == 0
+                || c.x as u64 + c.width as u64 > film.width as u64
+                || c.y as u64 + c.height as u64 > film.height as u64
+            {
+                return Err(err(format!(
+                    "film crop (x: {}, y: {}, width: {}, height: {}) must be non-empty and inside the {}x{} film",
+                    c.x, c.y, c.width, c.height, film.width, film.height
+                )));
+            }
+            Window {
+                x: c.x,
+                y: c.y,
+                width: c.width,
+                height: c.height,
+            }
+        }
+    };
+    if !film.exposure.is_finite() {
+        return Err(err("film `exposure` must be finite".into()));
+    }
+    if desc.sampler.spp == 0 {
+        return Err(err("sampler `spp` must be at least 1".into()));
+    }
+    let cam = &desc.camera;
+    let camera = Camera::new(
+        Vec3::from(cam.position),
+        Vec3::from(cam.target),
+        Vec3::from(cam.up),
+        cam.fov,
+        film.width,
+        film.height,
+    )
+    .map_err(err)?;
+
+    // BSDFs, by name.
+    let mut bsdf_names = Vec::new();
+    let mut bsdfs: Vec<Arc<dyn Bsdf>> = Vec::new();
+    for (name, spec) in &desc.bsdfs {
+        let plugin = registry::find::<BsdfPlugin>(&spec.kind)
+            .map_err(|e| err(format!("bsdf `{name}`: {e}")))?;
+        let mut params = plugin_params(name, "bsdf", spec, plugin.params).map_err(err)?;
+        let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
+        params.finish().map_err(|e| err(e.to_string()))?;
+        bsdf_names.push(name.as_str());
+        bsdfs.push(bsdf);
+    }
+
+    // Shapes, with their area emitters.
+    let mut geometries = Vec::new();
+    let mut shape_bsdf = Vec::new();
+    let mut shape_emitter = Vec::new();
+    let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
+    for (i, shape) in desc.shapes.iter().enumerate() {
+        let label = format!("shapes[{i}] ({})", shape.kind);
+        let bsdf = bsdf_names
+            .iter()
+            .position(|n| *n == shape.bsdf)
+            .ok_or_else(|| {
+                err(format!(
+                    "{label} uses bsdf `{}`, which is not defined{}; defined bsdfs: {}",
+                    shape.bsdf,
+                    did_you_mean(&shape.bsdf, bsdf_names.iter().copied()),
+                    if bsdf_names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        bsdf_names.join(", ")
+                    }
+                ))
+            })?;
+        let geometry = build_shape(shape, base).map_err(|e| match e {
+            ShapeError::Scene(msg) => err(format!("{label}: {msg}")),
+            ShapeError::Asset(file, msg) => SceneError::new(
+                file,
+                format!("{msg} (used by {label} of {})", path.display()),
+            ),
+        })?;
+        shape_bsdf.push(bsdf as u32);
+        shape_emitter.push(match &shape.emitter {
+            None => None,
+            Some(spec) => {
+                let emitter = build_emitter(&format!("{label}.emitter"), spec, Some(&geometry))
+                    .map_err(err)?;
+                emitters.push(emitter);
+                Some(emitters.len() as u32 - 1)
+            }
+        });
+        geometries.push(geometry);
+    }
+    for (i, spec) in desc.emitters.iter().enumerate() {
+        emitters.push(build_emitter(&format!("emitters[{i}]"), spec, None).map_err(err)?);
+    }
+
+    let spec = &desc.integrator;
+    let plugin = registry::find::<IntegratorPlugin>(&spec.kind)
+        .map_err(|e| err(format!("integrator: {e}")))?;
+    let mut params = Params::new(
+        format!("integrator `{}`", spec.kind),
+        plugin.params,
+        spec.params.clone(),
+    )
+    .map_err(|e| err(e.to_string()))?;
+    let integrator = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
+    params.finish().map_err(|e| err(e.to_string()))?;
+
+    let output = match &film.output {
+        Some(o) => PathBuf::from(o),
+        None => PathBuf::from(path.file_stem().unwrap_or_default()).with_extension("exr"),
+    };
+    let scene = Scene {
+        camera,
+        width: film.width,
+        height: film.height,
+        window,
+        spp: desc.sampler.spp,
+        seed: desc.sampler.seed,
+        geometry: Geometry::new(geometries),
+        bsdfs,
+        emitters,
+        shape_bsdf,
+        shape_emitter,
+        output,
+        exposure: film.exposure,
+    };
+    Ok(LoadedScene {
+        scene,
+        integrator,
+        description: desc,
+    })
+}
+
+fn plugin_params(
+    name: &str,
+    kind: &str,
+    spec: &PluginSpec,
+    specs: &'static [crate::params::ParamSpec],
+) -> Result<Params, String> {
+    Params::new(
+        format!("{kind} `{name}` ({})", spec.kind),
+        specs,
+        spec.params.clone(),
+    )
+    .map_err(|e| e.to_string())
+}
+
+fn build_emitter(
+    label: &str,
+    spec: &PluginSpec,
+    shape: Option<&ShapeGeometry>,
+) -> Result<Arc<dyn Emitter>, String> {
+    let plugin =
+        registry::find::<EmitterPlugin>(&spec.kind).map_err(|e| format!("{label}: {e}"))?;
+    let mut params = Params::new(
+        format!("{label} ({})", spec.kind),
+        plugin.params,
+        spec.params.clone(),
+    )
+    .map_err(|e| e.to_string())?;
+    let emitter = (plugin.create)(&mut params, &EmitterContext { shape })
+        .map_err(|e| format!("{label}: {e}"))?;
+    params.finish().map_err(|e| e.to_string())?;
+    Ok(emitter)
+}
+
+enum ShapeError {
+    /// A problem with the scene's description of the shape.
+    Scene(String),
+    /// A problem with a file the shape refers to.
+    Asset(PathBuf, String),
+}
+
+fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, ShapeError> {
+    let scene_err = |m: String| ShapeError::Scene(m);
+    let allowed: &[&str] = match shape.kind.as_str() {
+        "gltf" => &["file", "mesh"],
+        "sphere" => &["center", "radius"],
+        "disk" => &["segments"],
+        "rectangle" | "cube" => &[],
+        other => {
+            const KINDS: [&str; 5] = ["gltf", "rectangle", "cube", "disk", "sphere"];
+            return Err(scene_err(format!(
+                "unknown shape type `{other}`{}; known shape types: {}",
+                did_you_mean(other, KINDS),
+                KINDS.join(", ")
+            )));
+        }
+    };
+    let given = [
+        ("file", shape.file.is_some()),
+        ("mesh", shape.mesh.is_some()),
+        ("center", shape.center.is_some()),
+        ("radius", shape.radius.is_some()),
+        ("segments", shape.segments.is_some()),
+    ];
+    if let Some((name, _)) = given
+        .iter()
+        .find(|(name, set)| *set && !allowed.contains(name))
+    {
+        return Err(scene_err(format!(
+            "`{name}` does not apply to a {} shape",
+            shape.kind
+        )));
+    }
+    let matrix = shapes::transform_matrix(&shape.transform).map_err(scene_err)?;
+    let mesh = match shape.kind.as_str() {
+        "gltf" => {
+            let file = shape
+                .file
+                .as_ref()
+                .ok_or_else(|| scene_err("a gltf shape needs `file`".into()))?;
+            let file = base.join(file);
+            gltf::load(&file, shape.mesh.as_deref())
+                .map_err(|m| ShapeError::Asset(file.clone(), m))?
+        }
+        "rectangle" => shapes::rectangle(),
+        "cube" => shapes::cube(),
+        "disk" => {
+            let segments = shape.segments.unwrap_or(64);
+            if !(3..=1 << 20).contains(&segments) {
+                return Err(scene_err(format!(
+                    "disk `segments` must be in 3..=1048576, found {segments}"
+                )));
+            }
+            shapes::disk(segments)
+        }
+        _ => {
+            let radius = shape.radius.unwrap_or(1.0);
+            let center = Vec3::from(shape.center.unwrap_or([0.0; 3]));
+            if !(radius > 0.0 && radius.is_finite()) || !center.is_finite() {
+                return Err(scene_err(format!(
+                    "sphere radius must be positive and finite, found {radius}"
+                )));
+            }
+            // An analytic sphere stays a sphere only under rotation, uniform scale and translation.
+            let (scale, _, _) = matrix.to_scale_rotation_translation();
+            let s = scale.abs();
+            if (s.x - s.y).abs() > 1e-4 * s.x || (s.x - s.z).abs() > 1e-4 * s.x {
+                return Err(scene_err(format!(
+                    "a sphere's transform must scale uniformly, found scale {:?}",
+                    scale.to_array()
+                )));
+            }
+            return Ok(ShapeGeometry::Sphere(Sphere {
+                center: matrix.transform_point3(center),
+                radius: radius * s.x,
+            }));
+        }
+    };
+    Ok(ShapeGeometry::Mesh(mesh.transformed(&matrix)))
+}

@@ -1,0 +1,60 @@
+//! Scenes: the RON description, how it is built into renderable form, and the built scene.
+
+pub mod description;
+pub mod gltf;
+pub mod load;
+pub mod overrides;
+pub mod shapes;
+
+use crate::accel::{Geometry, Intersection, Ray};
+use crate::bsdf::Bsdf;
+use crate::camera::Camera;
+use crate::emitter::Emitter;
+use crate::film::Window;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+pub use load::{LoadedScene, load_scene};
+
+/// Everything an integrator needs to render: camera, surfaces, materials and lights.
+pub struct Scene {
+    pub camera: Camera,
+    /// Size of the full film, in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// The part of the film that is rendered.
+    pub window: Window,
+    /// Camera samples per pixel.
+    pub spp: u32,
+    pub seed: u64,
+    pub geometry: Geometry,
+    pub bsdfs: Vec<Arc<dyn Bsdf>>,
+    /// Every light: area emitters of shapes in shape order, then the scene's `emitters` list.
+    pub emitters: Vec<Arc<dyn Emitter>>,
+    /// Per shape: index of its BSDF and of its area emitter.
+    pub shape_bsdf: Vec<u32>,
+    pub shape_emitter: Vec<Option<u32>>,
+    /// Where the EXR goes (the PNG preview goes beside it).
+    pub output: PathBuf,
+    /// Exposure of the PNG preview, in stops.
+    pub exposure: f32,
+}
+
+impl Scene {
+    pub fn intersect(&self, ray: &Ray) -> Option<Intersection> {
+        self.geometry.intersect(ray)
+    }
+
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.geometry.occluded(ray)
+    }
+
+    pub fn bsdf(&self, hit: &Intersection) -> &dyn Bsdf {
+        self.bsdfs[self.shape_bsdf[hit.shape as usize] as usize].as_ref()
+    }
+
+    /// Index of the area emitter of the shape that was hit, if it emits.
+    pub fn emitter_of(&self, hit: &Intersection) -> Option<usize> {
+        self.shape_emitter[hit.shape as usize].map(|e| e as usize)
+    }
+}

@@ -1,0 +1,7 @@
+//! Built-in BSDF plugins, one per file, each registered under its scene-file name.
+
+pub mod diffuse;
+
+/// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.
+#[inline(never)]
+pub fn link() {}
