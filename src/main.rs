@@ -130,14 +130,14 @@ fn render(args: RenderArgs) -> Result<()> {
 
     let integrator = &loaded.description.integrator;
     let mut metadata: Metadata = vec![
-        ("lumis:scene".into(), args.scene.display().to_string()),
-        ("lumis:integrator".into(), integrator.kind.clone()),
-        ("lumis:spp".into(), loaded.scene.spp.to_string()),
-        ("lumis:seed".into(), loaded.scene.seed.to_string()),
+        ("scene".into(), args.scene.display().to_string()),
+        ("integrator".into(), integrator.kind.clone()),
+        ("spp".into(), loaded.scene.spp.to_string()),
+        ("seed".into(), loaded.scene.seed.to_string()),
     ];
     metadata.extend(integrator.params.iter().map(|(k, v)| {
         (
-            format!("lumis:integrator.{k}"),
+            format!("integrator.{k}"),
             ron::to_string(v).unwrap_or_default(),
         )
     }));

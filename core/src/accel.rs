@@ -323,7 +323,10 @@ impl Geometry {
     }
 
     fn bvh_ray(ray: &Ray) -> BvhRay {
-        BvhRay::new(ray.origin.into(), ray.direction.into(), 0.0, ray.t_max)
+        // Adding +0 turns -0 components into +0: obvhs takes the direction's octant from the
+        // comparison with zero but the inverse's sign from signum, which disagree for -0.
+        let direction = ray.direction + Vec3::ZERO;
+        BvhRay::new(ray.origin.into(), direction.into(), 0.0, ray.t_max)
     }
 
     /// The closest intersection along the ray, if any.
@@ -423,5 +426,192 @@ impl Geometry {
                     intersect_sphere(ray, r.tmax, sphere).unwrap_or(f32::INFINITY)
                 }
             })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::shapes::Mesh;
+    use proptest::prelude::*;
+    use proptest::test_runner::{Config, TestRunner};
+
+    fn brute_force_closest(prims: &[Primitive], ray: &Ray) -> Option<(f32, u32)> {
+        let shear = RayShear::new(ray.direction);
+        let mut best: Option<(f32, u32)> = None;
+        for prim in prims {
+            let t_max = best.map_or(ray.t_max, |b| b.0);
+            let (t, shape) = match prim {
+                Primitive::Triangle { p, shape, .. } => (
+                    intersect_triangle(ray, &shear, t_max, p).map(|h| h.0),
+                    *shape,
+                ),
+                Primitive::Sphere { sphere, shape } => {
+                    (intersect_sphere(ray, t_max, sphere), *shape)
+                }
+            };
+            if let Some(t) = t.filter(|&t| t < t_max) {
+                best = Some((t, shape));
+            }
+        }
+        best
+    }
+
+    fn point() -> impl Strategy<Value = Vec3> {
+        (-10.0f32..10.0, -10.0f32..10.0, -10.0f32..10.0).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    }
+
+    /// Random triangles, some of them degenerate (repeated or collinear vertices), and spheres.
+    fn scene() -> impl Strategy<Value = Vec<ShapeGeometry>> {
+        let triangle = (point(), point(), point(), 0u8..4).prop_map(|(a, b, c, kind)| match kind {
+            0 => [a, a, b],                 // two equal vertices
+            1 => [a, b, a + 2.0 * (b - a)], // collinear
+            _ => [a, b, c],
+        });
+        let mesh = prop::collection::vec(triangle, 1..60).prop_map(|tris| {
+            let mut m = Mesh::default();
+            for t in tris {
+                let base = m.positions.len() as u32;
+                m.positions.extend(t);
+                m.indices.push([base, base + 1, base + 2]);
+            }
+            ShapeGeometry::Mesh(m)
+        });
+        let sphere = (point(), 0.01f32..3.0)
+            .prop_map(|(center, radius)| ShapeGeometry::Sphere(Sphere { center, radius }));
+        (
+            prop::collection::vec(mesh, 1..4),
+            prop::collection::vec(sphere, 0..4),
+        )
+            .prop_map(|(mut a, b)| {
+                a.extend(b);
+                a
+            })
+    }
+
+    fn ray() -> impl Strategy<Value = Ray> {
+        (point(), point(), prop::bool::ANY, 0u8..4).prop_filter_map(
+            "zero direction",
+            |(o, d, finite, kind)| {
+                let direction = match kind {
+                    // Along an axis, with signed zeros in the other components (-X is (-1, -0, -0)).
+                    0 => {
+                        let axis = d.abs().max_position();
+                        Vec3::AXES[axis] * d[axis].signum()
+                    }
+                    _ => d.normalize_or_zero(),
+                };
+                (d.length() > 1e-3).then_some(Ray {
+                    origin: o * 1.5,
+                    direction,
+                    t_max: if finite { 12.0 } else { f32::INFINITY },
+                })
+            },
+        )
+    }
+
+    #[test]
+    fn bvh_answers_equal_brute_force() {
+        let mut runner = TestRunner::new(Config {
+            cases: 64,
+            ..Config::default()
+        });
+        runner
+            .run(
+                &(scene(), prop::collection::vec(ray(), 200)),
+                |(shapes, rays)| {
+                    let geometry = Geometry::new(shapes);
+                    for ray in &rays {
+                        let expected = brute_force_closest(&geometry.primitives, ray);
+                        let got = geometry.intersect(ray);
+                        prop_assert_eq!(got.map(|h| h.t), expected.map(|e| e.0), "ray {:?}", ray);
+                        prop_assert_eq!(geometry.occluded(ray), expected.is_some());
+                        if let Some(hit) = got {
+                            prop_assert!(
+                                hit.position.is_finite() && hit.geometric_normal.is_normalized()
+                            );
+                        }
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+    }
+
+    /// Rays spawned from a hit never hit the same surface again, however far from the origin the
+    /// scene is (a fixed epsilon fails at one of these scales).
+    #[test]
+    fn spawned_rays_do_not_self_intersect_at_any_scale() {
+        for scale in [1e-3f32, 1.0, 1e3, 1e5] {
+            let offset = Vec3::new(3.0, -2.0, 7.0) * scale;
+            let mut plane = crate::scene::shapes::rectangle();
+            plane
+                .positions
+                .iter_mut()
+                .for_each(|p| *p = *p * scale * 10.0 + offset);
+            let sphere = Sphere {
+                center: offset + Vec3::new(0.0, 0.0, 3.0) * scale,
+                radius: scale,
+            };
+            let geometry = Geometry::new(vec![
+                ShapeGeometry::Mesh(plane),
+                ShapeGeometry::Sphere(sphere),
+            ]);
+            let mut sampler = crate::sampler::Sampler::new(1, 2, 3);
+            let mut hits = 0;
+            for _ in 0..2000 {
+                let u = sampler.next_2d();
+                let target = offset + Vec3::new(u.x * 4.0 - 2.0, u.y * 4.0 - 2.0, 0.0) * scale;
+                let origin = offset + Vec3::new(0.3, 0.1, 8.0) * scale;
+                let ray = Ray {
+                    origin,
+                    direction: (target - origin).normalize(),
+                    t_max: f32::INFINITY,
+                };
+                let Some(hit) = geometry.intersect(&ray) else {
+                    continue;
+                };
+                hits += 1;
+                // Leave the surface on the side the ray came from, at a grazing angle too.
+                let d = sampler.next_2d();
+                let mut w = Vec3::new(d.x - 0.5, d.y - 0.5, 0.0) + hit.geometric_normal * 1e-3;
+                if w.dot(hit.geometric_normal) * ray.direction.dot(hit.geometric_normal) > 0.0 {
+                    w = -w;
+                }
+                let w = w.normalize();
+                if let Some(again) = geometry.intersect(&hit.spawn_ray(w)) {
+                    assert!(
+                        again.shape != hit.shape || again.t > 1e-3 * scale,
+                        "scale {scale}: self-intersection at t = {}",
+                        again.t
+                    );
+                }
+            }
+            assert!(hits > 1000, "scale {scale}: only {hits} hits");
+        }
+    }
+
+    #[test]
+    fn shadow_rays_reach_points_on_surfaces() {
+        let mut plane = crate::scene::shapes::rectangle();
+        plane
+            .positions
+            .iter_mut()
+            .for_each(|p| *p = *p * 1e4 + Vec3::new(5e4, 0.0, 0.0));
+        let geometry = Geometry::new(vec![ShapeGeometry::Mesh(plane)]);
+        let origin = Vec3::new(5e4, 0.0, 1e4);
+        let hit = geometry
+            .intersect(&Ray {
+                origin,
+                direction: -Vec3::Z,
+                t_max: f32::INFINITY,
+            })
+            .expect("plane below");
+        for target in [Vec3::new(5e4, 0.0, 2e3), Vec3::new(4.2e4, 3e3, 5.0)] {
+            assert!(
+                !geometry.occluded(&hit.spawn_ray_to(target)),
+                "blocked toward {target}"
+            );
+        }
     }
 }

@@ -50,7 +50,8 @@ pub fn write_atomically(
     Ok(())
 }
 
-/// Extra text attributes stored in the EXR header (e.g. the integrator and its settings).
+/// Key–value pairs stored in the EXR header as the text attribute `lumis`, one `key=value` a line
+/// (the scene, the integrator and its settings).
 pub type Metadata = Vec<(String, String)>;
 
 /// Writes colour as channels R, G, B and each AOV as `aov.channel`, in one EXR part whose data
@@ -76,12 +77,17 @@ pub fn write_exr(film: &Film, path: &Path, metadata: &Metadata) -> Result<(), Ou
             ));
         }
     }
-    let mut attributes = LayerAttributes::default();
-    attributes.layer_position = Vec2(film.window.x as i32, film.window.y as i32);
-    for (key, value) in metadata {
+    let mut attributes = LayerAttributes {
+        layer_position: Vec2(film.window.x as i32, film.window.y as i32),
+        ..LayerAttributes::default()
+    };
+    // One attribute holding every entry: exr keeps attributes in a HashMap, whose order (and so
+    // the file's bytes) would change from run to run with several.
+    if !metadata.is_empty() {
+        let text: String = metadata.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
         attributes.other.insert(
-            Text::from(key.as_str()),
-            AttributeValue::Text(Text::from(value.as_str())),
+            Text::from("lumis"),
+            AttributeValue::Text(Text::from(text.as_str())),
         );
     }
     let layer = Layer::new(
@@ -134,6 +140,13 @@ pub fn write_png(film: &Film, path: &Path, exposure: f32) -> Result<(), OutputEr
     })
 }
 
+fn exr_error(path: &Path, e: exr::error::Error) -> String {
+    match e {
+        exr::error::Error::Io(io) => format!("cannot read EXR file `{}`: {io}", path.display()),
+        other => format!("`{}` is not a valid EXR file: {other}", path.display()),
+    }
+}
+
 /// An RGB image read from an EXR file, in row order.
 #[derive(Clone, Debug)]
 pub struct RgbImage {
@@ -142,8 +155,7 @@ pub struct RgbImage {
     pub pixels: Vec<Rgb>,
 }
 
-/// Reads the first RGB(A) layer of an EXR file; the error names the reason only (callers add
-/// the path and its role).
+/// Reads the first RGB(A) layer of an EXR file; the error names the path and the reason.
 pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
     let image = read_first_rgba_layer_from_file(
         path,
@@ -156,13 +168,13 @@ pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
             img.pixels[pos.y() * img.width + pos.x()] = Rgb::new(r, g, b);
         },
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| exr_error(path, e))?;
     Ok(image.layer_data.channel_data.pixels)
 }
 
 /// Every channel of the first layer of an EXR file, by name, as f32 (for tests and tools).
 pub fn read_exr_channels(path: &Path) -> Result<Vec<(String, Vec<f32>)>, String> {
-    let image = read_all_flat_layers_from_file(path).map_err(|e| e.to_string())?;
+    let image = read_all_flat_layers_from_file(path).map_err(|e| exr_error(path, e))?;
     let layer = image.layer_data.first().ok_or("the file has no layer")?;
     Ok(layer
         .channel_data

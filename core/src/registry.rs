@@ -13,6 +13,9 @@ use crate::integrator::Integrator;
 use crate::params::{ParamSpec, Params, PluginError};
 use std::sync::Arc;
 
+/// Builds an emitter from its parameters and, for area emitters, its shape.
+pub type CreateEmitter = fn(&mut Params, &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError>;
+
 pub struct BsdfPlugin {
     pub name: &'static str,
     pub description: &'static str,
@@ -24,7 +27,7 @@ pub struct EmitterPlugin {
     pub name: &'static str,
     pub description: &'static str,
     pub params: &'static [ParamSpec],
-    pub create: fn(&mut Params, &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError>,
+    pub create: CreateEmitter,
 }
 
 pub struct IntegratorPlugin {

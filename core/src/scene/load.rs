@@ -327,7 +327,7 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
         _ => {
             let radius = shape.radius.unwrap_or(1.0);
             let center = Vec3::from(shape.center.unwrap_or([0.0; 3]));
-            if !(radius > 0.0 && radius.is_finite()) || !center.is_finite() {
+            if !(radius > 0.0 && radius.is_finite() && center.is_finite()) {
                 return Err(scene_err(format!(
                     "sphere radius must be positive and finite, found {radius}"
                 )));

@@ -1,0 +1,325 @@
+//! Rendering end to end: determinism across thread counts, analytic answers, outputs.
+
+mod common;
+use common::{SMALL_SCENE, load, lumis, scene_file};
+use std::path::Path;
+
+fn render_film(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::Film {
+    let loaded = load(path, overrides).expect("scene loads");
+    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), threads, &|_| {})
+        .expect("render")
+        .0
+}
+
+fn repo_path(relative: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+}
+
+#[test]
+fn one_and_two_threads_give_bit_identical_exrs() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo_path("scenes/cornell.ron");
+    let common = [
+        "--set",
+        "film.width=48",
+        "--set",
+        "film.height=40",
+        "--spp",
+        "2",
+        "--quiet",
+    ];
+    for threads in ["1", "2"] {
+        let out_name = format!("t{threads}.exr");
+        let mut args = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            &out_name,
+            "--threads",
+            threads,
+        ];
+        args.extend(common);
+        let out = lumis(dir.path(), &args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let a = std::fs::read(dir.path().join("t1.exr")).unwrap();
+    let b = std::fs::read(dir.path().join("t2.exr")).unwrap();
+    assert!(a.len() > 1000);
+    assert!(a == b, "EXRs differ between 1 and 2 threads");
+    assert!(
+        dir.path().join("t1.png").exists(),
+        "PNG preview beside the EXR"
+    );
+}
+
+#[test]
+fn cornell_box_is_finite_and_lit_where_expected() {
+    let film = render_film(
+        &repo_path("scenes/cornell.ron"),
+        &["film.width=32", "film.height=32", "sampler.spp=1"],
+        2,
+    );
+    assert!(
+        film.color
+            .iter()
+            .all(|c| c.is_finite() && c.min_element() >= 0.0)
+    );
+    let px = |x: usize, y: usize| film.color[y * 32 + x];
+    // The light (top centre) is the brightest; the left wall is red, the right wall green.
+    assert!(px(16, 4).x > 10.0, "light {:?}", px(16, 4));
+    let left = px(2, 16);
+    let right = px(29, 16);
+    assert!(
+        left.x > 2.0 * left.y && left.x > 2.0 * left.z,
+        "left wall {left:?}"
+    );
+    assert!(
+        right.y > 2.0 * right.x && right.y > 2.0 * right.z,
+        "right wall {right:?}"
+    );
+}
+
+#[test]
+fn exr_has_colour_channels_metadata_and_crop_window() {
+    let (dir, path) = scene_file("scene.ron", SMALL_SCENE);
+    let text = SMALL_SCENE.replace(
+        "height: 16)",
+        "height: 16, crop: (x: 4, y: 2, width: 8, height: 6))",
+    );
+    std::fs::write(&path, text).unwrap();
+    let out = lumis(dir.path(), &["render", "scene.ron", "--quiet"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let exr = dir.path().join("scene.exr");
+    let channels = lumis::image_io::read_exr_channels(&exr).unwrap();
+    let names: Vec<&str> = channels.iter().map(|c| c.0.as_str()).collect();
+    assert_eq!(names, ["B", "G", "R"]);
+    assert_eq!(channels[0].1.len(), 8 * 6);
+    let meta = exr::meta::MetaData::read_from_file(&exr, false).unwrap();
+    let header = &meta.headers[0];
+    assert_eq!(header.own_attributes.layer_position, exr::math::Vec2(4, 2));
+    assert_eq!(
+        header.shared_attributes.display_window.size,
+        exr::math::Vec2(16, 16)
+    );
+    let lumis_attribute = header
+        .own_attributes
+        .other
+        .get(&exr::meta::attribute::Text::from("lumis"));
+    let Some(exr::meta::attribute::AttributeValue::Text(text)) = lumis_attribute else {
+        panic!("no lumis attribute: {:?}", header.own_attributes.other);
+    };
+    let text = text.to_string();
+    for line in [
+        "integrator=balance\n",
+        "integrator.samples=4\n",
+        "spp=2\n",
+        "seed=1\n",
+    ] {
+        assert!(text.contains(line), "{line:?} missing from {text}");
+    }
+    let png = image::open(dir.path().join("scene.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (8, 6));
+}
+
+/// Renders an 8×8 image of (nearly) one floor point and returns the mean and its standard error,
+/// from the spread of the 64 independent pixel estimates.
+fn mean_and_standard_error(film: &lumis::film::Film) -> (f64, f64) {
+    let values: Vec<f64> = film.color.iter().map(|c| c.y as f64).collect();
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (variance / n).sqrt())
+}
+
+fn floor_scene(light: &str) -> String {
+    format!(
+        r#"Scene(
+    camera: (position: (0.6, 1.0, -1.2), target: (0, 0, 0), fov: 0.01),
+    film: (width: 8, height: 8),
+    sampler: (spp: 4, seed: 3),
+    integrator: (type: "balance", samples: 16),
+    bsdfs: {{ "grey": (type: "diffuse", reflectance: 0.5) }},
+    shapes: [
+        (type: "rectangle", bsdf: "grey", transform: (scale: (10, 10, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        {light}
+    ],
+)"#
+    )
+}
+
+#[test]
+fn sphere_light_gives_the_analytic_radiance_on_axis() {
+    // E = pi L (r/d)^2 on axis, so a Lambertian floor of albedo rho reflects rho L (r/d)^2.
+    let (r, d, radiance, rho) = (0.25f64, 2.0f64, 10.0f64, 0.5f64);
+    let light = format!(
+        "(type: \"sphere\", bsdf: \"grey\", radius: {r}, center: (0, {d}, 0), emitter: (type: \"area\", radiance: {radiance})),"
+    );
+    let (_dir, path) = scene_file("sphere.ron", &floor_scene(&light));
+    let film = render_film(&path, &[], 2);
+    let (mean, se) = mean_and_standard_error(&film);
+    let expected = rho * radiance * (r / d).powi(2);
+    assert!(se < 0.02 * expected, "too noisy to test: se {se}");
+    assert!(
+        (mean - expected).abs() < 4.0 * se,
+        "mean {mean} vs {expected} (se {se})"
+    );
+}
+
+#[test]
+fn disk_light_gives_the_analytic_radiance_on_axis() {
+    // A disk of radius R at height h: E = pi L R^2 / (h^2 + R^2).
+    let (big_r, h, radiance, rho) = (0.5f64, 1.0f64, 4.0f64, 0.5f64);
+    let light = format!(
+        "(type: \"disk\", segments: 4096, bsdf: \"grey\", transform: (scale: ({big_r}, {big_r}, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (0, {h}, 0)), emitter: (type: \"area\", radiance: {radiance})),"
+    );
+    let (_dir, path) = scene_file("disk.ron", &floor_scene(&light));
+    let film = render_film(&path, &[], 2);
+    let (mean, se) = mean_and_standard_error(&film);
+    let expected = rho * radiance * big_r * big_r / (h * h + big_r * big_r);
+    assert!(se < 0.02 * expected, "too noisy to test: se {se}");
+    assert!(
+        (mean - expected).abs() < 4.0 * se,
+        "mean {mean} vs {expected} (se {se})"
+    );
+}
+
+#[test]
+fn gltf_meshes_load_with_node_transforms_and_names() {
+    let (_dir, path) = scene_file(
+        "bunny.ron",
+        &SMALL_SCENE.replacen(
+            "(type: \"rectangle\", bsdf: \"white\",",
+            &format!(
+                "(type: \"gltf\", file: \"{}\", bsdf: \"white\",",
+                repo_path("scenes/meshes/bunny.glb").display()
+            ),
+            1,
+        ),
+    );
+    let loaded = load(&path, &[]).expect("bunny loads");
+    let lumis::scene::shapes::ShapeGeometry::Mesh(mesh) = &loaded.scene.geometry.shapes()[0] else {
+        panic!("a mesh");
+    };
+    assert_eq!(mesh.indices.len(), 3674);
+    assert!(
+        mesh.normals
+            .as_ref()
+            .is_some_and(|n| n.len() == mesh.positions.len())
+    );
+    let film = render_film(&path, &[], 1);
+    assert!(film.color.iter().all(|c| c.is_finite()));
+}
+
+#[test]
+fn every_builtin_plugin_is_registered() {
+    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, plugins};
+    lumis::link_plugins();
+    let names = |v: Vec<&'static str>| v.join(",");
+    assert_eq!(
+        names(plugins::<BsdfPlugin>().iter().map(|p| p.name()).collect()),
+        "diffuse"
+    );
+    assert_eq!(
+        names(
+            plugins::<EmitterPlugin>()
+                .iter()
+                .map(|p| p.name())
+                .collect()
+        ),
+        "area"
+    );
+    assert_eq!(
+        names(
+            plugins::<IntegratorPlugin>()
+                .iter()
+                .map(|p| p.name())
+                .collect()
+        ),
+        "balance"
+    );
+}
+
+#[test]
+fn plugin_reference_is_current() {
+    lumis::link_plugins();
+    let doc = std::fs::read_to_string(repo_path("docs/plugins.md")).expect("docs/plugins.md");
+    assert_eq!(
+        doc,
+        lumis::registry::plugins_markdown(),
+        "regenerate with `lumis plugins --markdown > docs/plugins.md`"
+    );
+}
+
+/// Each plugin lives in the file named after it, whose doc comment lists every parameter with
+/// its default.
+#[test]
+fn plugin_files_document_their_parameters() {
+    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, plugins};
+    lumis::link_plugins();
+    fn check<P: PluginInfo + lumis::inventory::Collect>(dir: &str) {
+        for p in plugins::<P>() {
+            let file = repo_path(&format!("plugins/{dir}/src/{}.rs", p.name()));
+            let text = std::fs::read_to_string(&file)
+                .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+            let doc: String = text
+                .lines()
+                .filter(|l| l.starts_with("//!"))
+                .collect::<Vec<_>>()
+                .join("\n");
+            assert!(
+                doc.contains(&format!("`{}`", p.name())),
+                "{}: doc names the plugin",
+                file.display()
+            );
+            for q in p.params() {
+                let name = format!("`{}`", q.name);
+                let default = q.default_text();
+                let default = default.trim_matches('"');
+                assert!(
+                    doc.lines()
+                        .any(|l| l.contains(&name) && l.contains(default)),
+                    "{}: no doc line gives `{}` with its default {default}",
+                    file.display(),
+                    q.name
+                );
+            }
+        }
+    }
+    check::<BsdfPlugin>("bsdfs");
+    check::<EmitterPlugin>("emitters");
+    check::<IntegratorPlugin>("integrators");
+}
+
+#[test]
+fn outputs_are_replaced_atomically() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("out.exr");
+    std::fs::write(&target, b"previous").unwrap();
+    // A writer that fails half-way leaves the previous file intact and no temporary behind.
+    let r = lumis::image_io::write_atomically(&target, |f| {
+        use std::io::Write;
+        f.write_all(b"partial").unwrap();
+        Err("interrupted".into())
+    });
+    assert!(r.unwrap_err().to_string().contains("interrupted"));
+    assert_eq!(std::fs::read(&target).unwrap(), b"previous");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "temporary left behind"
+    );
+    lumis::image_io::write_atomically(&target, |f| {
+        use std::io::Write;
+        f.write_all(b"new").map_err(|e| e.to_string())
+    })
+    .unwrap();
+    assert_eq!(std::fs::read(&target).unwrap(), b"new");
+}
