@@ -323,3 +323,45 @@ fn outputs_are_replaced_atomically() {
     .unwrap();
     assert_eq!(std::fs::read(&target).unwrap(), b"new");
 }
+
+/// A `.gltf` with an external `.bin`: two named nodes, one translated under a scaled parent.
+fn write_two_node_gltf(dir: &Path) {
+    let positions: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"two.bin","byteLength":{len}}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+        "meshes":[{{"name":"tri","primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "nodes":[{{"name":"parent","scale":[2,2,2],"children":[1]}},
+                 {{"name":"moved","mesh":0,"translation":[10,0,0]}},
+                 {{"name":"plain","mesh":0}}],
+        "scenes":[{{"nodes":[0,2]}}],"scene":0}}"#,
+        len = positions.len()
+    );
+    std::fs::write(dir.join("two.gltf"), gltf).unwrap();
+    std::fs::write(dir.join("two.bin"), positions).unwrap();
+}
+
+#[test]
+fn gltf_nodes_are_transformed_and_selectable_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    write_two_node_gltf(dir.path());
+    let path = dir.path().join("two.gltf");
+    let all = lumis::scene::gltf::load(&path, None).unwrap();
+    assert_eq!(all.indices.len(), 2);
+    let moved = lumis::scene::gltf::load(&path, Some("moved")).unwrap();
+    // Parent scale 2 applies after the child's translation: x in [20, 22].
+    let xs: Vec<f32> = moved.positions.iter().map(|p| p.x).collect();
+    assert_eq!(xs, [20.0, 22.0, 20.0]);
+    assert!(moved.normals.is_none());
+    let by_parent = lumis::scene::gltf::load(&path, Some("parent")).unwrap();
+    assert_eq!(by_parent.positions, moved.positions);
+    let e = lumis::scene::gltf::load(&path, Some("moved2")).unwrap_err();
+    assert!(
+        e.contains("no node or mesh named `moved2`") && e.contains("did you mean `moved`"),
+        "{e}"
+    );
+}
