@@ -4,6 +4,7 @@
 pub mod accel;
 pub mod bsdf;
 pub mod camera;
+pub mod chi2;
 pub mod emitter;
 pub mod error;
 pub mod film;

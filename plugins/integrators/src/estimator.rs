@@ -9,7 +9,8 @@
 //! ```
 //!
 //! over all n_bsdf + n_light samples, f = BSDF · cos · L_e,j · V. A BSDF sample counts for light
-//! j only if it reaches light j.
+//! j only if it reaches light j. A delta BSDF sample (a mirror) has no density to compare: only
+//! BSDF sampling can produce it, so it contributes weight · L_e / n_bsdf.
 
 use glam::{UVec2, Vec3};
 use lumis_core::accel::Intersection;
@@ -97,6 +98,11 @@ pub fn estimate_light(
         };
         let le = emitter.eval(wi, Some(&emitter_hit));
         if le == Rgb::ZERO {
+            continue;
+        }
+        if s.delta {
+            // Light sampling cannot produce a Dirac direction: the BSDF technique takes it all.
+            sum += s.weight * le / n_b;
             continue;
         }
         let p_light = emitter.pdf_direction(&reference, wi, Some(&emitter_hit));

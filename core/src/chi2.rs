@@ -1,0 +1,375 @@
+//! Chi-square goodness-of-fit test of a direction sampler against its density (as Mitsuba's
+//! `ChiSquareTest`): for BSDF and emitter plugins, including third-party ones.
+//!
+//! Sampled directions are histogrammed over equal-area bins in (φ, cos θ) about an axis; the
+//! density is integrated over each bin with Simpson's rule; bins expecting fewer than 5 samples
+//! are pooled; the statistic's p-value is compared with a significance level that the caller
+//! corrects for the number of tests (Šidák). Any sample where the density is zero fails the test.
+//!
+//! Bins may cover a cap about the axis (`cos_cap > −1`) so that very sharp lobes are resolved;
+//! samples outside the cap and failed samples share one bin, whose expected count is the rest of
+//! the probability mass.
+
+use crate::sampler::Sampler;
+use glam::{DVec3, Vec3};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+use std::f64::consts::TAU;
+use std::path::PathBuf;
+
+/// The configuration of one test.
+#[derive(Clone, Debug)]
+pub struct Chi2Test {
+    /// The pole of the (φ, cos θ) parameterisation.
+    pub axis: Vec3,
+    /// Bins cover cos θ in [cos_cap, 1]; −1 covers the whole sphere.
+    pub cos_cap: f64,
+    pub theta_bins: usize,
+    pub phi_bins: usize,
+    pub samples: usize,
+    /// Simpson nodes per bin and axis (rounded up to 4k + 1).
+    pub integration_nodes: usize,
+    pub seed: u64,
+}
+
+impl Default for Chi2Test {
+    fn default() -> Self {
+        Chi2Test {
+            axis: Vec3::Z,
+            cos_cap: -1.0,
+            theta_bins: 32,
+            phi_bins: 64,
+            samples: 1_000_000,
+            integration_nodes: 7,
+            seed: 0,
+        }
+    }
+}
+
+/// The result of a test, with both histograms for inspection.
+#[derive(Clone, Debug)]
+pub struct Chi2Outcome {
+    pub chi2: f64,
+    pub degrees_of_freedom: usize,
+    pub p_value: f64,
+    /// Counts per bin (θ-major), then the outside-or-failed bin.
+    pub observed: Vec<f64>,
+    pub expected: Vec<f64>,
+    /// Samples that landed where the density is zero.
+    pub zero_density_samples: usize,
+    /// ∫ pdf over the binned region (≤ 1 for a valid density).
+    pub integral: f64,
+    pub theta_bins: usize,
+    pub phi_bins: usize,
+}
+
+/// Tests a BSDF's `sample` against its `pdf` for the outgoing direction `wo` (local frame).
+/// Delta samples cannot be binned against a density and count as failed samples.
+pub fn test_bsdf(bsdf: &dyn crate::bsdf::Bsdf, wo: Vec3, test: &Chi2Test) -> Chi2Outcome {
+    test.run(
+        |s| {
+            let u_lobe = s.next_1d();
+            bsdf.sample(wo, u_lobe, s.next_2d())
+                .filter(|b| !b.delta)
+                .map(|b| b.wi)
+        },
+        |wi| bsdf.pdf(wo, wi) as f64,
+    )
+}
+
+/// The per-test significance that keeps the family-wise level at `alpha` over `tests` tests.
+pub fn sidak(alpha: f64, tests: usize) -> f64 {
+    1.0 - (1.0 - alpha).powf(1.0 / tests as f64)
+}
+
+/// An orthonormal frame in f64 (Duff et al. 2017).
+fn frame(n: DVec3) -> (DVec3, DVec3, DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let t = DVec3::new(b, sign + n.y * n.y * a, -n.y);
+    (s, t, n)
+}
+
+impl Chi2Test {
+    /// Runs the test: `sample` draws one direction (None: the sampler failed or absorbed),
+    /// `pdf` is the density in solid angle that `sample` is meant to have.
+    pub fn run(
+        &self,
+        mut sample: impl FnMut(&mut Sampler) -> Option<Vec3>,
+        pdf: impl Fn(Vec3) -> f64,
+    ) -> Chi2Outcome {
+        let (s, t, n) = frame(self.axis.as_dvec3().normalize());
+        let u_max = 1.0 - self.cos_cap;
+        let bins = self.theta_bins * self.phi_bins;
+        let mut observed = vec![0.0; bins + 1];
+        let mut zero_density_samples = 0;
+        let mut sampler = Sampler::new(self.seed, 0x5eed, 0);
+        for _ in 0..self.samples {
+            let Some(d) = sample(&mut sampler) else {
+                observed[bins] += 1.0;
+                continue;
+            };
+            let density = pdf(d);
+            if density.is_nan() || density <= 0.0 {
+                zero_density_samples += 1;
+            }
+            let dd = d.as_dvec3().normalize();
+            let (x, y, z) = (dd.dot(s), dd.dot(t), dd.dot(n));
+            // 1 − cos θ without cancellation near the pole.
+            let u = if z > 0.0 {
+                (x * x + y * y) / (1.0 + z)
+            } else {
+                1.0 - z
+            };
+            if u >= u_max {
+                observed[bins] += 1.0;
+                continue;
+            }
+            let phi = y.atan2(x).rem_euclid(TAU);
+            let i = ((u / u_max * self.theta_bins as f64) as usize).min(self.theta_bins - 1);
+            let j = ((phi / TAU * self.phi_bins as f64) as usize).min(self.phi_bins - 1);
+            observed[i * self.phi_bins + j] += 1.0;
+        }
+
+        // Expected counts: Simpson's rule in (u, φ), where dω = du dφ, on m = 4k + 1 nodes per
+        // axis; the same rule on every other node estimates the integration error (Richardson).
+        let m = (self.integration_nodes.max(5) - 1).next_multiple_of(4) + 1;
+        let weight = |k: usize, last: usize| {
+            if k == 0 || k == last {
+                1.0
+            } else if k % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            }
+        };
+        let du = u_max / self.theta_bins as f64;
+        let dphi = TAU / self.phi_bins as f64;
+        let mut expected = vec![0.0; bins + 1];
+        let mut error = vec![0.0; bins + 1];
+        let mut integral = 0.0;
+        let mut values = vec![0.0; m * m];
+        for i in 0..self.theta_bins {
+            for j in 0..self.phi_bins {
+                for a in 0..m {
+                    let u = (i as f64 + a as f64 / (m - 1) as f64) * du;
+                    let cos = 1.0 - u;
+                    let sin = (u * (2.0 - u)).max(0.0).sqrt();
+                    for b in 0..m {
+                        let phi = (j as f64 + b as f64 / (m - 1) as f64) * dphi;
+                        let d = s * (sin * phi.cos()) + t * (sin * phi.sin()) + n * cos;
+                        values[a * m + b] = pdf(d.as_vec3()).max(0.0);
+                    }
+                }
+                let simpson = |step: usize| {
+                    let last = (m - 1) / step;
+                    let mut sum = 0.0;
+                    for a in 0..=last {
+                        for b in 0..=last {
+                            sum +=
+                                weight(a, last) * weight(b, last) * values[a * step * m + b * step];
+                        }
+                    }
+                    sum * du * dphi / (9.0 * (last * last) as f64)
+                };
+                let (fine, coarse) = (simpson(1), simpson(2));
+                integral += fine;
+                let k = i * self.phi_bins + j;
+                expected[k] = fine * self.samples as f64;
+                error[k] = (fine - coarse).abs() / 15.0 * self.samples as f64;
+            }
+        }
+        expected[bins] = ((1.0 - integral) * self.samples as f64).max(0.0);
+        error[bins] = error[..bins].iter().sum();
+
+        let (chi2, degrees_of_freedom) = pooled_chi2(&observed, &expected, &error);
+        let p_value = if degrees_of_freedom == 0 {
+            if chi2 == 0.0 { 1.0 } else { 0.0 }
+        } else {
+            ChiSquared::new(degrees_of_freedom as f64)
+                .map(|d| d.sf(chi2))
+                .unwrap_or(0.0)
+        };
+        Chi2Outcome {
+            chi2,
+            degrees_of_freedom,
+            p_value,
+            observed,
+            expected,
+            zero_density_samples,
+            integral,
+            theta_bins: self.theta_bins,
+            phi_bins: self.phi_bins,
+        }
+    }
+}
+
+/// χ² over bins, pooling those expecting fewer than 5 samples. Each bin's variance is its
+/// Poisson variance plus the square of its expected count's integration error. A bin that
+/// expects nothing but received samples makes the statistic infinite.
+fn pooled_chi2(observed: &[f64], expected: &[f64], error: &[f64]) -> (f64, usize) {
+    let mut order: Vec<usize> = (0..observed.len()).collect();
+    order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let (mut chi2, mut bins) = (0.0, 0usize);
+    let (mut pool_obs, mut pool_exp, mut pool_err) = (0.0, 0.0, 0.0);
+    for &k in &order {
+        if expected[k] == 0.0 && error[k] == 0.0 {
+            if observed[k] > 0.0 {
+                return (f64::INFINITY, 1);
+            }
+            continue;
+        }
+        if expected[k] < 5.0 || pool_exp > 0.0 && pool_exp < 5.0 {
+            pool_obs += observed[k];
+            pool_exp += expected[k];
+            pool_err += error[k];
+            continue;
+        }
+        chi2 += (observed[k] - expected[k]).powi(2) / (expected[k] + error[k] * error[k]);
+        bins += 1;
+    }
+    if pool_exp > 0.0 || pool_err > 0.0 {
+        chi2 += (pool_obs - pool_exp).powi(2) / (pool_exp + pool_err * pool_err).max(1e-300);
+        bins += 1;
+    }
+    (chi2, bins.saturating_sub(1))
+}
+
+impl Chi2Outcome {
+    /// Panics with a report, and writes the two histograms as PNG images, if the test fails at
+    /// significance `alpha` (already corrected for the number of tests) or if any sample landed
+    /// where the density is zero.
+    pub fn assert_passes(&self, alpha: f64, name: &str) {
+        let failed = self.p_value < alpha
+            || self.zero_density_samples > 0
+            || self.integral.is_nan()
+            || self.integral >= 1.0 + 1e-3;
+        if !failed {
+            return;
+        }
+        let images = self.write_images(name);
+        panic!(
+            "chi-square test `{name}` failed: p = {:.3e} < {alpha:.3e} (chi2 = {:.1}, dof = {}), {} samples \
+             where the pdf is zero, pdf integral over the bins {:.5}; histograms: {images}",
+            self.p_value,
+            self.chi2,
+            self.degrees_of_freedom,
+            self.zero_density_samples,
+            self.integral
+        );
+    }
+
+    /// Writes observed and expected histograms side by side (φ across, θ down) to the directory
+    /// `LUMIS_CHI2_DIR` or the system's temporary directory; returns the path or the problem.
+    pub fn write_images(&self, name: &str) -> String {
+        let dir = std::env::var_os("LUMIS_CHI2_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| std::env::temp_dir().join("lumis-chi2"));
+        let bins = self.theta_bins * self.phi_bins;
+        let max = self.observed[..bins]
+            .iter()
+            .chain(&self.expected[..bins])
+            .fold(0.0f64, |a, &b| a.max(b));
+        let (w, h) = (self.phi_bins as u32, self.theta_bins as u32);
+        let mut img = image::GrayImage::new(2 * w + 2, h);
+        for i in 0..h {
+            for j in 0..w {
+                let k = (i * w + j) as usize;
+                let level = |v: f64| (255.0 * (v / max.max(1e-300)).sqrt()) as u8;
+                img.put_pixel(j, i, image::Luma([level(self.observed[k])]));
+                img.put_pixel(w + 2 + j, i, image::Luma([level(self.expected[k])]));
+            }
+        }
+        let file: String = name
+            .chars()
+            .map(|c| if c.is_alphanumeric() { c } else { '_' })
+            .collect();
+        let path = dir.join(format!("{file}.png"));
+        match std::fs::create_dir_all(&dir)
+            .map_err(|e| e.to_string())
+            .and_then(|_| img.save(&path).map_err(|e| e.to_string()))
+        {
+            Ok(()) => format!("{} (left observed, right expected)", path.display()),
+            Err(e) => format!("not written: {e}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+
+    #[test]
+    fn a_correct_sampler_passes_and_a_wrong_density_fails() {
+        let test = Chi2Test {
+            samples: 200_000,
+            ..Default::default()
+        };
+        let good = test.run(
+            |s| Some(square_to_cosine_hemisphere(s.next_2d())),
+            |d| cosine_hemisphere_pdf(d.z) as f64,
+        );
+        assert!(good.p_value > 0.01, "p = {}", good.p_value);
+        assert!((good.integral - 1.0).abs() < 1e-3);
+        // Uniform-hemisphere density claimed for a cosine sampler.
+        let bad = test.run(
+            |s| Some(square_to_cosine_hemisphere(s.next_2d())),
+            |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 },
+        );
+        assert!(bad.p_value < 1e-6, "{}", bad.p_value);
+    }
+
+    #[test]
+    fn samples_where_the_pdf_is_zero_are_caught() {
+        let test = Chi2Test {
+            samples: 10_000,
+            ..Default::default()
+        };
+        let o = test.run(
+            |s| Some(square_to_cosine_hemisphere(s.next_2d())),
+            |d| if d.x > 0.0 { 1.0 } else { 0.0 },
+        );
+        assert!(o.zero_density_samples > 0);
+    }
+
+    #[test]
+    fn caps_resolve_narrow_lobes() {
+        // A Phong lobe cos^n θ with n = 1e6 (width ~1e-3 rad), tested in a cap of 5e-3 rad.
+        let n = 1e6f64;
+        let test = Chi2Test {
+            cos_cap: (5e-3f64).cos(),
+            samples: 200_000,
+            ..Default::default()
+        };
+        let sample = |s: &mut Sampler| {
+            let u = s.next_2d().as_dvec2();
+            // cos θ = u^(1/(n+1)), kept as 1 − cos θ to stay accurate.
+            let one_minus_cos = -(u.x.ln() / (n + 1.0)).exp_m1();
+            let sin = (one_minus_cos * (2.0 - one_minus_cos)).sqrt();
+            let phi = TAU * u.y;
+            Some(DVec3::new(sin * phi.cos(), sin * phi.sin(), 1.0 - one_minus_cos).as_vec3())
+        };
+        let pdf = |d: Vec3| {
+            let d = d.as_dvec3();
+            let one_minus_cos = (d.x * d.x + d.y * d.y) / (1.0 + d.z);
+            (n + 1.0) / TAU * (n * (-one_minus_cos).ln_1p()).exp()
+        };
+        let o = test.run(sample, pdf);
+        assert!(
+            o.p_value > 0.01 && (o.integral - 1.0).abs() < 1e-3,
+            "{} {}",
+            o.p_value,
+            o.integral
+        );
+        // The same lobe claimed 10% wider fails.
+        let wider = |d: Vec3| {
+            let d = d.as_dvec3();
+            let one_minus_cos = (d.x * d.x + d.y * d.y) / (1.0 + d.z);
+            let m = n / 1.21;
+            (m + 1.0) / TAU * (m * (-one_minus_cos).ln_1p()).exp()
+        };
+        assert!(test.run(sample, wider).p_value < 1e-6);
+    }
+}
