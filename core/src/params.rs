@@ -27,9 +27,10 @@ pub enum ParamKind {
     Bool {
         default: Option<bool>,
     },
-    /// Linear RGB: `(r, g, b)` or one number for grey.
+    /// Linear RGB: `(r, g, b)` or one number for grey; each channel in [0, max].
     Rgb {
         default: Option<[f32; 3]>,
+        max: f32,
     },
     Vec3 {
         default: Option<[f32; 3]>,
@@ -88,7 +89,10 @@ impl ParamSpec {
                 default: Some(v), ..
             } => format!("{v}"),
             ParamKind::Bool { default: Some(v) } => format!("{v}"),
-            ParamKind::Rgb { default: Some(v) } | ParamKind::Vec3 { default: Some(v) } => triple(v),
+            ParamKind::Rgb {
+                default: Some(v), ..
+            }
+            | ParamKind::Vec3 { default: Some(v) } => triple(v),
             ParamKind::Interval { default, .. } => format!("({}, {})", default[0], default[1]),
             ParamKind::Str { default: Some(v) } => format!("{v:?}"),
             ParamKind::Choice { default, .. } => format!("{default:?}"),
@@ -108,6 +112,7 @@ impl ParamSpec {
                 format!("[{min}, {hi}")
             }
             ParamKind::Int { min, max, .. } => format!("[{min}, {max}]"),
+            ParamKind::Rgb { max, .. } if max.is_finite() => format!("[0, {max}] per channel"),
             ParamKind::Choice { options, .. } => options.join(" | "),
             _ => String::new(),
         }
@@ -337,11 +342,11 @@ impl Params {
         }
     }
 
-    /// A non-negative, finite linear RGB colour.
+    /// A linear RGB colour, each channel finite and in [0, max].
     pub fn rgb(&mut self, name: &str) -> Result<Vec3, PluginError> {
         let (spec, value) = self.take(name);
         let value = value.as_ref();
-        let ParamKind::Rgb { default } = spec.kind else {
+        let ParamKind::Rgb { default, max } = spec.kind else {
             panic!("parameter `{name}` is not declared as rgb");
         };
         const EXPECTED: &str = "an RGB triple (r, g, b) or one number";
@@ -353,11 +358,15 @@ impl Params {
                 _ => return Err(self.wrong_type(name, EXPECTED, v)),
             },
         };
-        if c.iter().any(|x| !x.is_finite() || *x < 0.0) {
+        if c.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > max) {
             return Err(PluginError::OutOfRange {
                 plugin: self.plugin.clone(),
                 name: name.to_string(),
-                range: "finite, non-negative values".into(),
+                range: if max.is_finite() {
+                    format!("[0, {max}] per channel")
+                } else {
+                    "finite, non-negative values".into()
+                },
                 found: format!("{c:?}"),
             });
         }
@@ -502,6 +511,7 @@ mod tests {
             name: "reflectance",
             kind: ParamKind::Rgb {
                 default: Some([0.5; 3]),
+                max: 1.0,
             },
             unit: "",
             description: "albedo",
@@ -555,6 +565,9 @@ mod tests {
 
         let mut p = params(r#"{"reflectance": (1, -1, 0)}"#).unwrap();
         assert!(p.rgb("reflectance").is_err());
+        let mut p = params(r#"{"reflectance": (1, 1.5, 0)}"#).unwrap();
+        let e = p.rgb("reflectance").unwrap_err().to_string();
+        assert!(e.contains("must be in [0, 1] per channel"), "{e}");
     }
 
     #[test]

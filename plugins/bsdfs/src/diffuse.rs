@@ -68,6 +68,7 @@ static PARAMS: &[ParamSpec] = &[ParamSpec {
     name: "reflectance",
     kind: ParamKind::Rgb {
         default: Some([0.5, 0.5, 0.5]),
+        max: 1.0,
     },
     unit: "",
     description: "albedo: fraction of incident light reflected, per channel, in [0, 1]",
@@ -75,14 +76,6 @@ static PARAMS: &[ParamSpec] = &[ParamSpec {
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
     let reflectance = params.rgb("reflectance")?;
-    if reflectance.max_element() > 1.0 {
-        return Err(PluginError::OutOfRange {
-            plugin: params.plugin().to_string(),
-            name: "reflectance".into(),
-            range: "[0, 1] per channel (more would create energy)".into(),
-            found: format!("{:?}", reflectance.to_array()),
-        });
-    }
     Ok(Arc::new(Diffuse::new(reflectance)))
 }
 

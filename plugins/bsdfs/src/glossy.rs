@@ -193,6 +193,7 @@ static PARAMS: &[ParamSpec] = &[
         name: "specular",
         kind: ParamKind::Rgb {
             default: Some([0.04, 0.04, 0.04]),
+            max: 1.0,
         },
         unit: "",
         description: "F0, Fresnel reflectance at normal incidence (Schlick), per channel in [0, 1]",
@@ -201,6 +202,7 @@ static PARAMS: &[ParamSpec] = &[
         name: "diffuse",
         kind: ParamKind::Rgb {
             default: Some([0.0, 0.0, 0.0]),
+            max: 1.0,
         },
         unit: "",
         description: "albedo of the diffuse base layer, per channel in [0, 1]",
@@ -211,16 +213,6 @@ fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
     let alpha = params.float("roughness")?;
     let f0 = params.rgb("specular")?;
     let diffuse = params.rgb("diffuse")?;
-    for (name, c) in [("specular", f0), ("diffuse", diffuse)] {
-        if c.max_element() > 1.0 {
-            return Err(PluginError::OutOfRange {
-                plugin: params.plugin().to_string(),
-                name: name.into(),
-                range: "[0, 1] per channel".into(),
-                found: format!("{:?}", c.to_array()),
-            });
-        }
-    }
     Ok(Arc::new(Glossy::new(alpha, f0, diffuse)))
 }
 

@@ -49,6 +49,7 @@ static PARAMS: &[ParamSpec] = &[ParamSpec {
     name: "reflectance",
     kind: ParamKind::Rgb {
         default: Some([1.0, 1.0, 1.0]),
+        max: 1.0,
     },
     unit: "",
     description: "fraction of light reflected, per channel in [0, 1]",
@@ -56,14 +57,6 @@ static PARAMS: &[ParamSpec] = &[ParamSpec {
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
     let reflectance = params.rgb("reflectance")?;
-    if reflectance.max_element() > 1.0 {
-        return Err(PluginError::OutOfRange {
-            plugin: params.plugin().to_string(),
-            name: "reflectance".into(),
-            range: "[0, 1] per channel".into(),
-            found: format!("{:?}", reflectance.to_array()),
-        });
-    }
     Ok(Arc::new(Mirror { reflectance }))
 }
 

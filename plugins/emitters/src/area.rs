@@ -174,7 +174,10 @@ impl Emitter for AreaEmitter {
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "radiance",
-        kind: ParamKind::Rgb { default: None },
+        kind: ParamKind::Rgb {
+            default: None,
+            max: f32::INFINITY,
+        },
         unit: "W/(m²·sr)",
         description: "emitted radiance",
     },
