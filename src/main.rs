@@ -22,6 +22,15 @@ struct Cli {
 enum Command {
     /// Render a scene to an EXR (colour and AOV layers) and a PNG preview beside it.
     Render(RenderArgs),
+    /// Write a MERL-format measured BRDF file tabulating any BSDF (e.g. to test `measured`).
+    Merl {
+        /// The BSDF to tabulate, as in a scene file: '(type: "glossy", roughness: 0.2)'.
+        #[arg(long)]
+        bsdf: String,
+        /// The .binary file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// List the built-in plugins with their parameters.
     Plugins {
         /// Print the reference as Markdown (docs/plugins.md is generated this way).
@@ -64,6 +73,7 @@ fn main() {
     lumis::link_plugins();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Merl { bsdf, output } => merl(&bsdf, &output),
         Command::Plugins { markdown } => {
             print!(
                 "{}",
@@ -82,6 +92,21 @@ fn main() {
     }
 }
 
+fn merl(spec: &str, output: &std::path::Path) -> Result<()> {
+    let spec: lumis::scene::description::PluginSpec = ron::from_str(spec)
+        .with_context(|| format!("--bsdf `{spec}` is not a plugin description"))?;
+    let plugin = lumis::registry::find::<lumis::registry::BsdfPlugin>(&spec.kind)
+        .map_err(anyhow::Error::msg)?;
+    let mut params =
+        lumis::params::Params::new(format!("bsdf ({})", spec.kind), plugin.params, spec.params)?;
+    let bsdf = (plugin.create)(&mut params)?;
+    params.finish()?;
+    lumis::bsdfs::measured::write_merl(output, |wi, wo| bsdf.eval(wo, wi) / wi.z)
+        .map_err(anyhow::Error::msg)?;
+    eprintln!("wrote {}", output.display());
+    Ok(())
+}
+
 fn render(args: RenderArgs) -> Result<()> {
     let mut overrides = args.overrides.clone();
     if let Some(spp) = args.spp {
@@ -90,7 +115,9 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Some(seed) = args.seed {
         overrides.push(format!("sampler.seed={seed}"));
     }
+    let load_start = std::time::Instant::now();
     let mut loaded = lumis::scene::load_scene(&args.scene, &overrides)?;
+    let load_time = load_start.elapsed();
     let exr_path = args.output.unwrap_or_else(|| loaded.scene.output.clone());
     if exr_path
         .extension()
@@ -147,13 +174,14 @@ fn render(args: RenderArgs) -> Result<()> {
     if !args.quiet {
         let secs = stats.wall_time.as_secs_f64();
         eprintln!(
-            "{} ({}x{}, {} spp, {}, {} threads): {:.3} s, {:.3} M samples/s, {:.2} M rays/s -> {} and {}",
+            "{} ({}x{}, {} spp, {}, {} threads): loaded in {:.3} s, rendered in {:.3} s, {:.3} M samples/s, {:.2} M rays/s -> {} and {}",
             args.scene.display(),
             window.width,
             window.height,
             loaded.scene.spp,
             integrator.kind,
             stats.threads,
+            load_time.as_secs_f64(),
             secs,
             stats.camera_samples as f64 / secs / 1e6,
             stats.rays as f64 / secs / 1e6,

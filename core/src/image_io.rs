@@ -28,7 +28,8 @@ fn output_error(path: &Path, reason: impl ToString) -> OutputError {
     }
 }
 
-/// Writes through `write` into a temporary file beside `path`, then renames it to `path`.
+/// Writes through `write` into a temporary file beside `path`, then renames it to `path`
+/// (creating the directory if needed).
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
@@ -37,11 +38,20 @@ pub fn write_atomically(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
+    std::fs::create_dir_all(dir).map_err(|e| output_error(path, e))?;
     let mut tmp = tempfile::Builder::new()
         .prefix(".lumis-")
         .suffix(".tmp")
         .tempfile_in(dir)
         .map_err(|e| output_error(path, e))?;
+    // The temporary file is private (0600); the output should be as readable as any file.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| output_error(path, e))?;
+    }
     write(tmp.as_file_mut()).map_err(|e| output_error(path, e))?;
     tmp.as_file_mut()
         .flush()

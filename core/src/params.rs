@@ -10,6 +10,7 @@ use glam::Vec3;
 use ron::Value;
 use std::collections::BTreeMap;
 use std::fmt;
+use std::path::{Path, PathBuf};
 
 /// The type of a parameter, with its default (`None`: the parameter is required) and range.
 #[derive(Clone, Copy, Debug)]
@@ -165,6 +166,8 @@ pub struct Params {
     specs: &'static [ParamSpec],
     values: BTreeMap<String, Value>,
     used: Vec<String>,
+    /// Directory that relative paths are resolved against (the scene file's).
+    base_dir: PathBuf,
 }
 
 /// A short description of a RON value, for "found ..." messages.
@@ -236,7 +239,14 @@ impl Params {
             specs,
             values,
             used: Vec::new(),
+            base_dir: PathBuf::new(),
         })
+    }
+
+    /// Resolves relative `path` parameters against `dir` (the scene file's directory).
+    pub fn with_base_dir(mut self, dir: &Path) -> Self {
+        self.base_dir = dir.to_path_buf();
+        self
     }
 
     /// The instance description used in messages.
@@ -435,15 +445,17 @@ impl Params {
         }
     }
 
-    /// A required path, as written (the caller resolves it against the scene directory).
-    pub fn path(&mut self, name: &str) -> Result<String, PluginError> {
+    /// A required path, resolved against the scene file's directory.
+    pub fn path(&mut self, name: &str) -> Result<PathBuf, PluginError> {
         let spec = self.spec(name);
         assert!(
             matches!(spec.kind, ParamKind::Path),
             "parameter `{name}` is not declared as a path"
         );
-        self.string_value(name)?
-            .ok_or_else(|| self.missing(spec, "a file path"))
+        let raw = self
+            .string_value(name)?
+            .ok_or_else(|| self.missing(spec, "a file path"))?;
+        Ok(self.base_dir.join(raw))
     }
 
     /// One of the declared options.

@@ -5,7 +5,7 @@ pub mod frame;
 pub mod rgb;
 pub mod warp;
 
-pub use distribution::Distribution1D;
+pub use distribution::{Distribution1D, Distribution2D};
 pub use frame::Frame;
 pub use rgb::{Rgb, luminance};
 

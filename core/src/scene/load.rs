@@ -140,7 +140,9 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     for (name, spec) in &desc.bsdfs {
         let plugin = registry::find::<BsdfPlugin>(&spec.kind)
             .map_err(|e| err(format!("bsdf `{name}`: {e}")))?;
-        let mut params = plugin_params(name, "bsdf", spec, plugin.params).map_err(err)?;
+        let mut params = plugin_params(name, "bsdf", spec, plugin.params)
+            .map_err(err)?
+            .with_base_dir(base);
         let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
         params.finish().map_err(|e| err(e.to_string()))?;
         bsdf_names.push(name.as_str());
@@ -180,8 +182,9 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         shape_emitter.push(match &shape.emitter {
             None => None,
             Some(spec) => {
-                let emitter = build_emitter(&format!("{label}.emitter"), spec, Some(&geometry))
-                    .map_err(err)?;
+                let emitter =
+                    build_emitter(&format!("{label}.emitter"), spec, Some(&geometry), base)
+                        .map_err(err)?;
                 emitters.push(emitter);
                 Some(emitters.len() as u32 - 1)
             }
@@ -189,7 +192,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         geometries.push(geometry);
     }
     for (i, spec) in desc.emitters.iter().enumerate() {
-        emitters.push(build_emitter(&format!("emitters[{i}]"), spec, None).map_err(err)?);
+        emitters.push(build_emitter(&format!("emitters[{i}]"), spec, None, base).map_err(err)?);
     }
 
     let spec = &desc.integrator;
@@ -200,7 +203,8 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         plugin.params,
         spec.params.clone(),
     )
-    .map_err(|e| err(e.to_string()))?;
+    .map_err(|e| err(e.to_string()))?
+    .with_base_dir(base);
     let integrator = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
     params.finish().map_err(|e| err(e.to_string()))?;
 
@@ -248,6 +252,7 @@ fn build_emitter(
     label: &str,
     spec: &PluginSpec,
     shape: Option<&ShapeGeometry>,
+    base: &Path,
 ) -> Result<Arc<dyn Emitter>, String> {
     let plugin =
         registry::find::<EmitterPlugin>(&spec.kind).map_err(|e| format!("{label}: {e}"))?;
@@ -256,7 +261,8 @@ fn build_emitter(
         plugin.params,
         spec.params.clone(),
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| e.to_string())?
+    .with_base_dir(base);
     let emitter = (plugin.create)(&mut params, &EmitterContext { shape })
         .map_err(|e| format!("{label}: {e}"))?;
     params.finish().map_err(|e| e.to_string())?;

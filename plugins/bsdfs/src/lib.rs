@@ -2,6 +2,7 @@
 
 pub mod diffuse;
 pub mod glossy;
+pub mod measured;
 pub mod mirror;
 
 /// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.

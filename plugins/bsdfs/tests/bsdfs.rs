@@ -9,6 +9,28 @@ use lumis_core::registry::{self, BsdfPlugin};
 use lumis_core::sampler::Sampler;
 use std::sync::Arc;
 
+/// The analytic BRDF the test MERL file is generated from.
+const MERL_SOURCE: &str = "\"roughness\": 0.25, \"specular\": (0.9, 0.6, 0.3), \"diffuse\": 0.3";
+
+/// A MERL file written once per test run from the glossy BRDF `MERL_SOURCE`.
+fn merl_file() -> &'static std::path::Path {
+    static FILE: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    FILE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap().keep();
+        let path = dir.join("glossy.binary");
+        let source = bsdf("glossy", MERL_SOURCE);
+        lumis_bsdfs::measured::write_merl(&path, |wi, wo| source.eval(wo, wi) / wi.z).unwrap();
+        path
+    })
+}
+
+fn measured() -> Arc<dyn Bsdf> {
+    bsdf(
+        "measured",
+        &format!("\"file\": {:?}", merl_file().to_str().unwrap()),
+    )
+}
+
 fn bsdf(kind: &str, params: &str) -> Arc<dyn Bsdf> {
     lumis_bsdfs::link();
     let plugin = registry::find::<BsdfPlugin>(kind).unwrap();
@@ -58,6 +80,21 @@ fn chi_square_sampling_matches_pdf() {
             wo,
             Chi2Test::default(),
         ));
+        // The measured density is piecewise constant over (cos θi, φi − φo) cells: with ωo at
+        // azimuth 0 and 64 × 128 bins per hemisphere the bins align with the cells, so Simpson's
+        // rule integrates each bin exactly.
+        let wo_at_zero_azimuth = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos).normalize();
+        cases.push((
+            format!("measured cos={cos}"),
+            measured(),
+            wo_at_zero_azimuth,
+            Chi2Test {
+                theta_bins: 128,
+                phi_bins: 128,
+                samples: 2_000_000,
+                ..Chi2Test::default()
+            },
+        ));
         for (name, params, alpha) in glossy_cases() {
             // At grazing incidence the reflected lobe is squeezed to ~2α·cos θo in elevation;
             // below ~1e-3 rad no histogram in f32 directions resolves it. Those cases are covered
@@ -99,6 +136,7 @@ fn all_bsdfs() -> Vec<(String, Arc<dyn Bsdf>)> {
             "mirror".to_string(),
             bsdf("mirror", "\"reflectance\": (0.9, 0.5, 0.1)"),
         ),
+        ("measured".to_string(), measured()),
     ];
     for (name, params, _) in glossy_cases() {
         v.push((name, bsdf("glossy", &params)));
@@ -269,5 +307,56 @@ fn hostile_directions_give_finite_values() {
                 }
             }
         }
+    }
+}
+
+/// The measured BRDF read from a file generated from an analytic one reproduces it: exactly at
+/// the table's grid points, and within the table's interpolation error between them.
+#[test]
+fn measured_reproduces_the_analytic_brdf_it_was_generated_from() {
+    let source = bsdf("glossy", MERL_SOURCE);
+    let table = lumis_bsdfs::measured::MerlTable::read(merl_file()).unwrap();
+    let f = |wo: Vec3, wi: Vec3| source.eval(wo, wi) / wi.z;
+    let mut s = Sampler::new(11, 12, 13);
+    let mut errors = Vec::new();
+    for _ in 0..20_000 {
+        let wo = lumis_core::math::warp::square_to_cosine_hemisphere(s.next_2d());
+        let wi = lumis_core::math::warp::square_to_cosine_hemisphere(s.next_2d());
+        if wo.z < 0.05 || wi.z < 0.05 {
+            continue;
+        }
+        let (a, m) = (f(wo, wi), table.lookup(wi, wo));
+        errors.push(((m - a).abs() / a.max(Vec3::splat(1e-3))).max_element());
+    }
+    errors.sort_by(f32::total_cmp);
+    let median = errors[errors.len() / 2];
+    let p95 = errors[errors.len() * 95 / 100];
+    // Linear interpolation on the 90x90x180 grid of a smooth lobe (alpha = 0.25).
+    assert!(
+        median < 0.01 && p95 < 0.05,
+        "relative error: median {median}, 95th percentile {p95}"
+    );
+}
+
+#[test]
+fn measured_refuses_missing_and_corrupt_files_by_name() {
+    lumis_bsdfs::link();
+    let plugin = registry::find::<BsdfPlugin>("measured").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let corrupt = dir.path().join("corrupt.binary");
+    std::fs::write(&corrupt, [0u8; 100]).unwrap();
+    for (file, reason) in [
+        ("missing.binary", "cannot read measured BRDF"),
+        ("corrupt.binary", "not a MERL file"),
+    ] {
+        let values = ron::from_str(&format!("{{\"file\": {file:?}}}")).unwrap();
+        let mut p = Params::new("bsdf `m` (measured)", plugin.params, values)
+            .unwrap()
+            .with_base_dir(dir.path());
+        let e = (plugin.create)(&mut p).err().expect("refused").to_string();
+        assert!(
+            e.contains(file) && e.contains(reason) && e.contains("bsdf `m`"),
+            "{e}"
+        );
     }
 }
