@@ -321,10 +321,18 @@ fn area_emitter_without_a_shape_is_refused() {
 }
 
 #[test]
-fn run_time_plugin_libraries_are_parsed_and_reported() {
+fn missing_plugin_library_names_its_path() {
     let text = SMALL_SCENE.replace("    ],\n)", "    ],\n    plugins: [\"libexample.so\"],\n)");
     let e = cli_error(&text, &[]);
-    assert_contains(&e, &["libexample.so", "plugin"]);
+    assert_contains(
+        &e,
+        &[
+            "libexample.so",
+            "cannot open plugin library",
+            "No such file",
+            "listed in the `plugins`",
+        ],
+    );
 }
 
 #[test]

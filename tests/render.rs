@@ -1,7 +1,7 @@
 //! Rendering end to end: determinism across thread counts, analytic answers, outputs.
 
 mod common;
-use common::{SMALL_SCENE, load, lumis, scene_file};
+use common::{SMALL_SCENE, example_library, load, lumis, scene_file};
 use std::path::Path;
 
 fn render_film(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::Film {
@@ -220,16 +220,16 @@ fn gltf_meshes_load_with_node_transforms_and_names() {
 
 #[test]
 fn every_builtin_plugin_is_registered() {
-    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, plugins};
+    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, builtin};
     lumis::link_plugins();
     let names = |v: Vec<&'static str>| v.join(",");
     assert_eq!(
-        names(plugins::<BsdfPlugin>().iter().map(|p| p.name()).collect()),
+        names(builtin::<BsdfPlugin>().iter().map(|p| p.name()).collect()),
         "diffuse,glossy,measured,mirror"
     );
     assert_eq!(
         names(
-            plugins::<EmitterPlugin>()
+            builtin::<EmitterPlugin>()
                 .iter()
                 .map(|p| p.name())
                 .collect()
@@ -238,7 +238,7 @@ fn every_builtin_plugin_is_registered() {
     );
     assert_eq!(
         names(
-            plugins::<IntegratorPlugin>()
+            builtin::<IntegratorPlugin>()
                 .iter()
                 .map(|p| p.name())
                 .collect()
@@ -262,10 +262,10 @@ fn plugin_reference_is_current() {
 /// its default.
 #[test]
 fn plugin_files_document_their_parameters() {
-    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, plugins};
+    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, builtin};
     lumis::link_plugins();
     fn check<P: PluginInfo + lumis::inventory::Collect>(dir: &str) {
-        for p in plugins::<P>() {
+        for p in builtin::<P>() {
             let file = repo_path(&format!("plugins/{dir}/src/{}.rs", p.name()));
             let text = std::fs::read_to_string(&file)
                 .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
@@ -376,6 +376,9 @@ fn every_bundled_scene_renders_finite_values() {
             continue;
         }
         generate_assets(&path);
+        if std::fs::read_to_string(&path).unwrap().contains("plugins:") {
+            example_library();
+        }
         let film = render_film(
             &path,
             &[

@@ -5,6 +5,7 @@ pub mod accel;
 pub mod bsdf;
 pub mod camera;
 pub mod chi2;
+pub mod dylib;
 pub mod emitter;
 pub mod error;
 pub mod film;

@@ -42,15 +42,17 @@ inventory::collect!(EmitterPlugin);
 inventory::collect!(IntegratorPlugin);
 
 /// Name, description and parameters, common to the three kinds.
-pub trait PluginInfo {
+pub trait PluginInfo: Sized + 'static {
     const KIND: &'static str;
     fn name(&self) -> &'static str;
     fn description(&self) -> &'static str;
     fn params(&self) -> &'static [ParamSpec];
+    /// Plugins of this kind registered by run-time libraries.
+    fn loaded() -> Vec<&'static Self>;
 }
 
 macro_rules! plugin_info {
-    ($t:ty, $kind:literal) => {
+    ($t:ty, $kind:literal, $loaded:expr) => {
         impl PluginInfo for $t {
             const KIND: &'static str = $kind;
             fn name(&self) -> &'static str {
@@ -62,16 +64,27 @@ macro_rules! plugin_info {
             fn params(&self) -> &'static [ParamSpec] {
                 self.params
             }
+            fn loaded() -> Vec<&'static Self> {
+                $loaded
+            }
         }
     };
 }
-plugin_info!(BsdfPlugin, "bsdf");
-plugin_info!(EmitterPlugin, "emitter");
-plugin_info!(IntegratorPlugin, "integrator");
+plugin_info!(BsdfPlugin, "bsdf", crate::dylib::loaded_bsdfs());
+plugin_info!(EmitterPlugin, "emitter", Vec::new());
+plugin_info!(IntegratorPlugin, "integrator", Vec::new());
 
-/// All plugins of one kind that are registered, sorted by name.
-pub fn plugins<P: PluginInfo + inventory::Collect>() -> Vec<&'static P> {
+/// The built-in plugins of one kind, sorted by name.
+pub fn builtin<P: PluginInfo + inventory::Collect>() -> Vec<&'static P> {
     let mut v: Vec<&'static P> = inventory::iter::<P>.into_iter().collect();
+    v.sort_by_key(|p| p.name());
+    v
+}
+
+/// All plugins of one kind that are registered (built in or loaded from libraries), by name.
+pub fn plugins<P: PluginInfo + inventory::Collect>() -> Vec<&'static P> {
+    let mut v = builtin::<P>();
+    v.extend(P::loaded());
     v.sort_by_key(|p| p.name());
     v
 }
@@ -119,7 +132,7 @@ fn param_line(p: &ParamSpec) -> String {
 
 fn section_text<P: PluginInfo + inventory::Collect>(title: &str) -> String {
     let mut s = format!("{title}:\n");
-    for p in plugins::<P>() {
+    for p in builtin::<P>() {
         s += &format!("  {} — {}\n", p.name(), p.description());
         for param in p.params() {
             s += &param_line(param);
@@ -128,7 +141,7 @@ fn section_text<P: PluginInfo + inventory::Collect>(title: &str) -> String {
     s
 }
 
-/// Every registered plugin with its parameters, as plain text (`lumis plugins`).
+/// Every built-in plugin with its parameters, as plain text (`lumis plugins`).
 pub fn plugins_text() -> String {
     [
         section_text::<BsdfPlugin>("BSDFs"),
@@ -140,7 +153,7 @@ pub fn plugins_text() -> String {
 
 fn section_markdown<P: PluginInfo + inventory::Collect>(title: &str) -> String {
     let mut s = format!("## {title}\n");
-    for p in plugins::<P>() {
+    for p in builtin::<P>() {
         s += &format!("\n### `{}`\n\n{}\n\n", p.name(), p.description());
         if p.params().is_empty() {
             s += "No parameters.\n";

@@ -49,3 +49,42 @@ pub fn load(
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     lumis::scene::load_scene(path, &overrides)
 }
+
+/// Builds the example plugin library `lumis-oren-nayar` (once per test binary) and returns its
+/// path, `target/debug/liblumis_oren_nayar.so` on Linux, where the scenes expect it.
+pub fn example_library() -> &'static Path {
+    static LIBRARY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    LIBRARY.get_or_init(|| {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        // The tests' profile, so that the build reuses their compiled dependencies.
+        let status = Command::new(cargo)
+            .args([
+                "build",
+                "--quiet",
+                "-p",
+                "lumis-oren-nayar",
+                "--profile",
+                "test",
+            ])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .status()
+            .expect("run cargo");
+        assert!(status.success(), "building the example plugin failed");
+        // target/debug/deps/<this test> -> target/debug
+        let dir = std::env::current_exe()
+            .unwrap()
+            .parent()
+            .unwrap()
+            .parent()
+            .unwrap()
+            .to_path_buf();
+        let file = format!(
+            "{}lumis_oren_nayar{}",
+            std::env::consts::DLL_PREFIX,
+            std::env::consts::DLL_SUFFIX
+        );
+        let path = dir.join(file);
+        assert!(path.exists(), "{} not built", path.display());
+        path
+    })
+}

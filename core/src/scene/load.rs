@@ -76,12 +76,14 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     let err = |msg: String| SceneError::new(path, msg);
     let base = path.parent().unwrap_or(Path::new(""));
 
-    if !desc.plugins.is_empty() {
-        let library = base.join(&desc.plugins[0]);
-        return Err(err(format!(
-            "run-time plugin library `{}`: loading plugin libraries is not supported by this build yet",
-            library.display()
-        )));
+    for library in &desc.plugins {
+        let library = base.join(library);
+        crate::dylib::load_library(&library).map_err(|e| {
+            SceneError::new(
+                &library,
+                format!("{e} (listed in the `plugins` of {})", path.display()),
+            )
+        })?;
     }
 
     let film = &desc.film;

@@ -1,0 +1,162 @@
+//! Run-time plugin libraries: BSDFs loaded from a shared library named in a scene's `plugins`.
+//!
+//! A library is a `cdylib` crate that depends on `lumis-core` and declares its plugins with
+//! [`declare_plugin_library!`](crate::declare_plugin_library), which exports one symbol,
+//! `LUMIS_PLUGIN_DECLARATION`, holding the plugin API version and the rustc version the library
+//! was built with. Rust has no stable ABI, so the loader refuses a library unless both match
+//! this program's exactly, before it touches anything else in the declaration. Loaded libraries
+//! are never unloaded (their code backs plugin objects for the life of the process).
+
+use crate::registry::BsdfPlugin;
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, RwLock};
+
+/// Version of the plugin interface (the traits, `BsdfPlugin`, `Params`); bumped on any change.
+pub const API_VERSION: u32 = 1;
+
+/// The rustc that built this copy of lumis-core.
+pub const RUSTC_VERSION: &str = env!("LUMIS_RUSTC_VERSION");
+
+/// Name of the symbol a plugin library exports.
+pub const DECLARATION_SYMBOL: &[u8] = b"LUMIS_PLUGIN_DECLARATION\0";
+
+/// What a plugin library exports. The first three fields have a C layout and are checked before
+/// `bsdfs`, whose layout is Rust's, is read.
+#[repr(C)]
+pub struct PluginDeclaration {
+    pub api_version: u32,
+    pub rustc_version: *const u8,
+    pub rustc_version_len: usize,
+    pub bsdfs: &'static [BsdfPlugin],
+}
+
+// The declaration is immutable static data.
+unsafe impl Sync for PluginDeclaration {}
+
+/// Declares the plugins of a run-time library:
+/// `lumis_core::declare_plugin_library!(bsdfs: [MY_BSDF]);` with `MY_BSDF` a `BsdfPlugin`.
+#[macro_export]
+macro_rules! declare_plugin_library {
+    (bsdfs: [$($plugin:expr),* $(,)?]) => {
+        #[unsafe(no_mangle)]
+        pub static LUMIS_PLUGIN_DECLARATION: $crate::dylib::PluginDeclaration =
+            $crate::dylib::PluginDeclaration {
+                api_version: $crate::dylib::API_VERSION,
+                rustc_version: $crate::dylib::RUSTC_VERSION.as_ptr(),
+                rustc_version_len: $crate::dylib::RUSTC_VERSION.len(),
+                bsdfs: &[$($plugin),*],
+            };
+    };
+}
+
+/// Libraries loaded so far, by canonical path; kept for the life of the process.
+static LIBRARIES: Mutex<Vec<(PathBuf, libloading::Library)>> = Mutex::new(Vec::new());
+/// BSDF plugins registered by libraries.
+static BSDFS: RwLock<Vec<&'static BsdfPlugin>> = RwLock::new(Vec::new());
+
+/// The BSDF plugins loaded from libraries so far.
+pub fn loaded_bsdfs() -> Vec<&'static BsdfPlugin> {
+    BSDFS.read().map(|v| v.clone()).unwrap_or_default()
+}
+
+/// Checks a declaration's versions against this program's.
+pub fn check_versions(api_version: u32, rustc_version: &str) -> Result<(), String> {
+    if api_version != API_VERSION {
+        return Err(format!(
+            "built for plugin API version {api_version}, but this lumis has version {API_VERSION}: rebuild it against this lumis-core"
+        ));
+    }
+    if rustc_version != RUSTC_VERSION {
+        return Err(format!(
+            "built with `{rustc_version}`, but this lumis was built with `{RUSTC_VERSION}`: Rust has no stable ABI, rebuild it with the same compiler"
+        ));
+    }
+    Ok(())
+}
+
+/// Loads the library at `path` (once per process) and registers its plugins. The error names
+/// the problem; callers add the path.
+pub fn load_library(path: &Path) -> Result<(), String> {
+    let canonical = path
+        .canonicalize()
+        .map_err(|e| format!("cannot open plugin library: {e}"))?;
+    let mut libraries = LIBRARIES.lock().map_err(|_| "plugin registry poisoned")?;
+    if libraries.iter().any(|(p, _)| *p == canonical) {
+        return Ok(());
+    }
+    // SAFETY: loading runs the library's initialisers; a lumis plugin library has none beyond
+    // Rust's. This is the trust a user gives a plugin by naming it in a scene.
+    let library = unsafe { libloading::Library::new(&canonical) }
+        .map_err(|e| format!("cannot load plugin library: {e}"))?;
+    // SAFETY: the symbol, if present, is the static declared by `declare_plugin_library!`; only
+    // its C-layout header is read before the versions are known to match.
+    let declaration: &'static PluginDeclaration = unsafe {
+        let symbol = library
+            .get::<*const PluginDeclaration>(DECLARATION_SYMBOL)
+            .map_err(|_| {
+                "not a lumis plugin library: it does not export LUMIS_PLUGIN_DECLARATION"
+                    .to_string()
+            })?;
+        &**symbol
+    };
+    // SAFETY: pointer and length describe the library's static RUSTC_VERSION string.
+    let rustc = unsafe {
+        std::slice::from_raw_parts(declaration.rustc_version, declaration.rustc_version_len)
+    };
+    check_versions(declaration.api_version, &String::from_utf8_lossy(rustc))?;
+    let registered: Vec<&str> = crate::registry::plugins::<BsdfPlugin>()
+        .iter()
+        .map(|p| p.name)
+        .collect();
+    if let Some(plugin) = declaration
+        .bsdfs
+        .iter()
+        .find(|p| registered.contains(&p.name))
+    {
+        return Err(format!(
+            "its BSDF `{}` has the name of a plugin that is already registered",
+            plugin.name
+        ));
+    }
+    BSDFS
+        .write()
+        .map_err(|_| "plugin registry poisoned")?
+        .extend(declaration.bsdfs);
+    libraries.push((canonical, library));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn version_mismatches_are_refused_with_both_versions() {
+        assert!(check_versions(API_VERSION, RUSTC_VERSION).is_ok());
+        let e = check_versions(API_VERSION + 1, RUSTC_VERSION).unwrap_err();
+        assert!(
+            e.contains(&format!("API version {}", API_VERSION + 1))
+                && e.contains(&format!("has version {API_VERSION}")),
+            "{e}"
+        );
+        let e = check_versions(API_VERSION, "rustc 1.0.0 (a28077b28 2015-05-13)").unwrap_err();
+        assert!(
+            e.contains("rustc 1.0.0") && e.contains(RUSTC_VERSION),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn missing_files_and_libraries_without_the_symbol_are_refused() {
+        let e = load_library(Path::new("/nonexistent/libplugin.so")).unwrap_err();
+        assert!(
+            e.contains("cannot open plugin library") && e.contains("No such file"),
+            "{e}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let garbage = dir.path().join("libgarbage.so");
+        std::fs::write(&garbage, b"not a shared library").unwrap();
+        let e = load_library(&garbage).unwrap_err();
+        assert!(e.contains("cannot load plugin library"), "{e}");
+    }
+}
