@@ -26,7 +26,7 @@ pub struct Chi2Test {
     pub theta_bins: usize,
     pub phi_bins: usize,
     pub samples: usize,
-    /// Simpson nodes per bin and axis (rounded up to 4k + 1).
+    /// Simpson nodes per axis of each integration region (odd; regions are refined adaptively).
     pub integration_nodes: usize,
     pub seed: u64,
 }
@@ -39,7 +39,7 @@ impl Default for Chi2Test {
             theta_bins: 32,
             phi_bins: 64,
             samples: 1_000_000,
-            integration_nodes: 7,
+            integration_nodes: 5,
             seed: 0,
         }
     }
@@ -134,56 +134,32 @@ impl Chi2Test {
             observed[i * self.phi_bins + j] += 1.0;
         }
 
-        // Expected counts: Simpson's rule in (u, φ), where dω = du dφ, on m = 4k + 1 nodes per
-        // axis; the same rule on every other node estimates the integration error (Richardson).
-        let m = (self.integration_nodes.max(5) - 1).next_multiple_of(4) + 1;
-        let weight = |k: usize, last: usize| {
-            if k == 0 || k == last {
-                1.0
-            } else if k % 2 == 1 {
-                4.0
-            } else {
-                2.0
-            }
+        // Expected counts: adaptive Simpson's rule in (u, φ), where dω = du dφ.
+        let density = |u: f64, phi: f64| {
+            let cos = 1.0 - u;
+            let sin = (u * (2.0 - u)).max(0.0).sqrt();
+            let d = s * (sin * phi.cos()) + t * (sin * phi.sin()) + n * cos;
+            pdf(d.as_vec3()).max(0.0)
+        };
+        let integrator = Simpson2D {
+            nodes: (self.integration_nodes.max(3) - 1).next_multiple_of(2) + 1,
+            // Refine until a region's error is below a hundredth of one expected sample.
+            tolerance: 0.01 / self.samples as f64,
+            max_depth: 7,
         };
         let du = u_max / self.theta_bins as f64;
         let dphi = TAU / self.phi_bins as f64;
         let mut expected = vec![0.0; bins + 1];
         let mut error = vec![0.0; bins + 1];
         let mut integral = 0.0;
-        let mut values = vec![0.0; m * m];
-        // Node k of a bin, as a fraction of it; the end nodes are moved just inside so that a
-        // density discontinuous at the bin's edge (a tabulated one) is read from this bin even
-        // after the node's direction is rounded to f32.
-        let inside = |k: usize| (k as f64 / (m - 1) as f64).clamp(1e-4, 1.0 - 1e-4);
         for i in 0..self.theta_bins {
             for j in 0..self.phi_bins {
-                for a in 0..m {
-                    let u = (i as f64 + inside(a)) * du;
-                    let cos = 1.0 - u;
-                    let sin = (u * (2.0 - u)).max(0.0).sqrt();
-                    for b in 0..m {
-                        let phi = (j as f64 + inside(b)) * dphi;
-                        let d = s * (sin * phi.cos()) + t * (sin * phi.sin()) + n * cos;
-                        values[a * m + b] = pdf(d.as_vec3()).max(0.0);
-                    }
-                }
-                let simpson = |step: usize| {
-                    let last = (m - 1) / step;
-                    let mut sum = 0.0;
-                    for a in 0..=last {
-                        for b in 0..=last {
-                            sum +=
-                                weight(a, last) * weight(b, last) * values[a * step * m + b * step];
-                        }
-                    }
-                    sum * du * dphi / (9.0 * (last * last) as f64)
-                };
-                let (fine, coarse) = (simpson(1), simpson(2));
-                integral += fine;
+                let (mass, err) =
+                    integrator.integrate(&density, [i as f64 * du, j as f64 * dphi], [du, dphi], 0);
+                integral += mass;
                 let k = i * self.phi_bins + j;
-                expected[k] = fine * self.samples as f64;
-                error[k] = (fine - coarse).abs() / 15.0 * self.samples as f64;
+                expected[k] = mass * self.samples as f64;
+                error[k] = err * self.samples as f64;
             }
         }
         expected[bins] = ((1.0 - integral) * self.samples as f64).max(0.0);
@@ -209,6 +185,66 @@ impl Chi2Test {
             theta_bins: self.theta_bins,
             phi_bins: self.phi_bins,
         }
+    }
+}
+
+/// Adaptive 2D Simpson integration over rectangles: a region whose Simpson estimate changes by
+/// more than the tolerance when split in four is split, so tabulated densities (discontinuous at
+/// their cells' edges) and sharp lobes are integrated where they vary.
+struct Simpson2D {
+    /// Nodes per axis of one region (odd).
+    nodes: usize,
+    tolerance: f64,
+    max_depth: u32,
+}
+
+impl Simpson2D {
+    fn simpson(&self, f: &impl Fn(f64, f64) -> f64, origin: [f64; 2], size: [f64; 2]) -> f64 {
+        let last = self.nodes - 1;
+        let weight = |k: usize| {
+            if k == 0 || k == last {
+                1.0
+            } else if k % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            }
+        };
+        // Nodes on a region's edge are moved just inside it, so that a density discontinuous
+        // there is read from this region even after directions are rounded to f32.
+        let at = |k: usize| (k as f64 / last as f64).clamp(1e-4, 1.0 - 1e-4);
+        let mut sum = 0.0;
+        for a in 0..=last {
+            let x = origin[0] + at(a) * size[0];
+            for b in 0..=last {
+                sum += weight(a) * weight(b) * f(x, origin[1] + at(b) * size[1]);
+            }
+        }
+        sum * size[0] * size[1] / (9.0 * (last * last) as f64)
+    }
+
+    /// The integral over the rectangle and an estimate of its error.
+    fn integrate(
+        &self,
+        f: &impl Fn(f64, f64) -> f64,
+        origin: [f64; 2],
+        size: [f64; 2],
+        depth: u32,
+    ) -> (f64, f64) {
+        let whole = self.simpson(f, origin, size);
+        let half = [size[0] / 2.0, size[1] / 2.0];
+        let quarters = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+            .map(|[a, b]| [origin[0] + a * half[0], origin[1] + b * half[1]]);
+        let parts: f64 = quarters.iter().map(|&o| self.simpson(f, o, half)).sum();
+        // Richardson: the refined estimate's error is about a fifteenth of the difference.
+        let error = (parts - whole).abs() / 15.0;
+        if error <= self.tolerance || depth >= self.max_depth {
+            return (parts, error);
+        }
+        quarters.iter().fold((0.0, 0.0), |(sum, err), &o| {
+            let (v, e) = self.integrate(f, o, half, depth + 1);
+            (sum + v, err + e)
+        })
     }
 }
 

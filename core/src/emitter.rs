@@ -24,7 +24,8 @@ pub struct EmitterHit {
 pub struct EmitterSample {
     /// Unit direction from the reference point toward the emitter.
     pub wi: Vec3,
-    /// The sampled point on the emitter, for the shadow ray (infinitely far: `None`).
+    /// The sampled point on the emitter, for the shadow ray (`None`: infinitely far, as for
+    /// directional lights and environments; the shadow ray then goes to infinity).
     pub position: Option<Vec3>,
     /// Normal at the sampled point (for offsetting the shadow ray's end).
     pub normal: Vec3,
@@ -45,6 +46,10 @@ pub trait Emitter: Send + Sync {
     fn eval(&self, wi: Vec3, hit: Option<&EmitterHit>) -> Rgb;
     /// Point and directional lights: reached only by their own samples.
     fn is_delta(&self) -> bool;
+    /// An environment: reached by rays that leave the scene (`hit` is then `None`).
+    fn is_environment(&self) -> bool {
+        false
+    }
 }
 
 /// What an emitter plugin is built from besides its parameters.

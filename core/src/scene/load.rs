@@ -193,8 +193,18 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         });
         geometries.push(geometry);
     }
+    let mut environment = None;
     for (i, spec) in desc.emitters.iter().enumerate() {
-        emitters.push(build_emitter(&format!("emitters[{i}]"), spec, None, base).map_err(err)?);
+        let emitter = build_emitter(&format!("emitters[{i}]"), spec, None, base).map_err(err)?;
+        if emitter.is_environment() {
+            if environment.is_some() {
+                return Err(err(format!(
+                    "emitters[{i}]: a scene has at most one environment emitter"
+                )));
+            }
+            environment = Some(emitters.len());
+        }
+        emitters.push(emitter);
     }
 
     let spec = &desc.integrator;
@@ -224,6 +234,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         geometry: Geometry::new(geometries),
         bsdfs,
         emitters,
+        environment,
         shape_bsdf,
         shape_emitter,
         output,

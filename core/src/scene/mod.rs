@@ -31,6 +31,8 @@ pub struct Scene {
     pub bsdfs: Vec<Arc<dyn Bsdf>>,
     /// Every light: area emitters of shapes in shape order, then the scene's `emitters` list.
     pub emitters: Vec<Arc<dyn Emitter>>,
+    /// Index of the environment emitter, which rays leaving the scene reach.
+    pub environment: Option<usize>,
     /// Per shape: index of its BSDF and of its area emitter.
     pub shape_bsdf: Vec<u32>,
     pub shape_emitter: Vec<Option<u32>>,
@@ -51,6 +53,12 @@ impl Scene {
 
     pub fn bsdf(&self, hit: &Intersection) -> &dyn Bsdf {
         self.bsdfs[self.shape_bsdf[hit.shape as usize] as usize].as_ref()
+    }
+
+    /// Radiance arriving along `-wi` from the environment, for a ray that left the scene.
+    pub fn environment_radiance(&self, wi: glam::Vec3) -> crate::math::Rgb {
+        self.environment
+            .map_or(crate::math::Rgb::ZERO, |e| self.emitters[e].eval(wi, None))
     }
 
     /// Index of the area emitter of the shape that was hit, if it emits.

@@ -104,10 +104,7 @@ fn chi_square_sampling_matches_pdf() {
             if alpha * cos < 5e-5 {
                 continue;
             }
-            let mut test = Chi2Test {
-                integration_nodes: 33,
-                ..Chi2Test::default()
-            };
+            let mut test = Chi2Test::default();
             if alpha < 0.3 {
                 // Resolve the sharp lobe: bins over a cap about the mirror direction, or at
                 // grazing incidence about the normal in half-vector space (below).

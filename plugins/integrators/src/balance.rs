@@ -2,16 +2,14 @@
 //!
 //! Per camera sample and per light, N = `samples` directions: ⌊N/2⌋ from the BSDF and the rest
 //! from the light, combined with the balance heuristic (Veach 1997), which equals the mixture
-//! estimator with α = N_B/N. Delta lights come with the emitter issue; here every light is an
-//! area light.
+//! estimator with α = N_B/N. Delta lights (point, directional) take one sample each.
 //!
 //! Parameters:
 //! - `samples` (integer, default 256, range [1, 1048576]): N, samples per light per camera sample.
 
-use crate::estimator::{SampleSplit, estimate_light, render_pixel_with};
+use crate::estimator::{SampleSplit, direct_lighting, render_pixel_with};
 use glam::UVec2;
 use lumis_core::integrator::{Integrator, PixelOutput};
-use lumis_core::math::Rgb;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 use lumis_core::scene::Scene;
@@ -23,11 +21,7 @@ pub struct Balance {
 impl Integrator for Balance {
     fn render_pixel(&self, scene: &Scene, pixel: UVec2, out: &mut PixelOutput<'_>) {
         out.color = render_pixel_with(scene, pixel, |sp, sampler| {
-            let mut sum = Rgb::ZERO;
-            for light in 0..scene.emitters.len() {
-                sum += estimate_light(scene, sp, light, self.split, sampler);
-            }
-            sum
+            direct_lighting(scene, sp, self.split, sampler)
         });
     }
 }

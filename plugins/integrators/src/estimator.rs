@@ -9,13 +9,15 @@
 //! ```
 //!
 //! over all n_bsdf + n_light samples, f = BSDF · cos · L_e,j · V. A BSDF sample counts for light
-//! j only if it reaches light j. A delta BSDF sample (a mirror) has no density to compare: only
-//! BSDF sampling can produce it, so it contributes weight · L_e / n_bsdf.
+//! j only if it reaches light j (a ray that leaves the scene reaches the environment). A delta
+//! BSDF sample (a mirror) has no density to compare: only BSDF sampling can produce it, so it
+//! contributes weight · L_e / n_bsdf. Delta lights (point, directional) cannot be reached by BSDF
+//! sampling: each takes one light sample, with no MIS.
 
 use glam::{UVec2, Vec3};
-use lumis_core::accel::Intersection;
+use lumis_core::accel::{Intersection, Ray};
 use lumis_core::bsdf::Bsdf;
-use lumis_core::emitter::{EmitterHit, ReferencePoint};
+use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
@@ -52,6 +54,23 @@ impl<'a> ShadingPoint<'a> {
     fn reflects_toward(&self, wi_world: Vec3) -> bool {
         self.normal.dot(wi_world) > 0.0
     }
+
+    /// Whether the light sample is unoccluded: a shadow ray to its point, or to infinity.
+    fn sees(&self, scene: &Scene, sample: &EmitterSample) -> bool {
+        let ray = match sample.position {
+            Some(target) => self.hit.spawn_ray_to(target),
+            None => self.hit.spawn_ray(sample.wi),
+        };
+        !scene.occluded(&ray)
+    }
+
+    /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there.
+    fn eval_toward(&self, sample: &EmitterSample) -> Rgb {
+        if !self.reflects_toward(sample.wi) {
+            return Rgb::ZERO;
+        }
+        self.bsdf.eval(self.wo, self.frame.to_local(sample.wi))
+    }
 }
 
 /// How many samples of each technique one light receives.
@@ -61,7 +80,26 @@ pub struct SampleSplit {
     pub n_light: u32,
 }
 
-/// The balance-heuristic estimate of the radiance reflected at `sp` from light `light`.
+/// Where a BSDF-sampled ray reaches light `light`, if it does: the emitter hit (None for the
+/// environment) and the radiance arriving.
+fn reaches_light(scene: &Scene, light: usize, ray: &Ray) -> Option<(Option<EmitterHit>, Rgb)> {
+    let emitter = scene.emitters[light].as_ref();
+    match scene.intersect(ray) {
+        None if scene.environment == Some(light) => Some((None, emitter.eval(ray.direction, None))),
+        None => None,
+        Some(hit) if scene.emitter_of(&hit) == Some(light) => {
+            let h = EmitterHit {
+                position: hit.position,
+                normal: hit.geometric_normal,
+                distance: hit.t,
+            };
+            Some((Some(h), emitter.eval(ray.direction, Some(&h))))
+        }
+        Some(_) => None,
+    }
+}
+
+/// The balance-heuristic estimate of the radiance reflected at `sp` from non-delta light `light`.
 pub fn estimate_light(
     scene: &Scene,
     sp: &ShadingPoint,
@@ -85,18 +123,9 @@ pub fn estimate_light(
         if !sp.reflects_toward(wi) {
             continue;
         }
-        let Some(hit) = scene.intersect(&sp.hit.spawn_ray(wi)) else {
+        let Some((hit, le)) = reaches_light(scene, light, &sp.hit.spawn_ray(wi)) else {
             continue;
         };
-        if scene.emitter_of(&hit) != Some(light) {
-            continue;
-        }
-        let emitter_hit = EmitterHit {
-            position: hit.position,
-            normal: hit.geometric_normal,
-            distance: hit.t,
-        };
-        let le = emitter.eval(wi, Some(&emitter_hit));
         if le == Rgb::ZERO {
             continue;
         }
@@ -105,7 +134,7 @@ pub fn estimate_light(
             sum += s.weight * le / n_b;
             continue;
         }
-        let p_light = emitter.pdf_direction(&reference, wi, Some(&emitter_hit));
+        let p_light = emitter.pdf_direction(&reference, wi, hit.as_ref());
         // f / (n_B p_B + n_L p_L), with f = weight · p_B.
         sum += s.weight * le * (s.pdf / (n_b * s.pdf + n_l * p_light));
     }
@@ -114,26 +143,56 @@ pub fn estimate_light(
         let Some(ls) = emitter.sample_direction(&reference, sampler.next_2d()) else {
             continue;
         };
-        if !sp.reflects_toward(ls.wi) {
+        let f = sp.eval_toward(&ls);
+        if f == Rgb::ZERO || !sp.sees(scene, &ls) {
             continue;
         }
-        let wi = sp.frame.to_local(ls.wi);
-        let f = sp.bsdf.eval(sp.wo, wi);
-        if f == Rgb::ZERO {
-            continue;
-        }
-        let Some(target) = ls.position else { continue };
-        if scene.occluded(&sp.hit.spawn_ray_to(target)) {
-            continue;
-        }
-        let p_bsdf = sp.bsdf.pdf(sp.wo, wi);
+        let p_bsdf = sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi));
         sum += f * ls.radiance / (n_b * p_bsdf + n_l * ls.pdf);
     }
     sum
 }
 
+/// One sample of a delta light (point, directional): its contribution, with no MIS.
+pub fn estimate_delta_light(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    sampler: &mut Sampler,
+) -> Rgb {
+    let reference = ReferencePoint {
+        position: sp.hit.position,
+    };
+    let Some(ls) = scene.emitters[light].sample_direction(&reference, sampler.next_2d()) else {
+        return Rgb::ZERO;
+    };
+    let f = sp.eval_toward(&ls);
+    if f == Rgb::ZERO || !sp.sees(scene, &ls) {
+        return Rgb::ZERO;
+    }
+    f * ls.radiance / ls.pdf
+}
+
+/// Direct lighting from every light: MIS with `split` for the others, one sample per delta light.
+pub fn direct_lighting(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    split: SampleSplit,
+    sampler: &mut Sampler,
+) -> Rgb {
+    let mut sum = Rgb::ZERO;
+    for (light, emitter) in scene.emitters.iter().enumerate() {
+        sum += if emitter.is_delta() {
+            estimate_delta_light(scene, sp, light, sampler)
+        } else {
+            estimate_light(scene, sp, light, split, sampler)
+        };
+    }
+    sum
+}
+
 /// The camera sample `index` of `pixel`: its random stream and primary ray.
-pub fn camera_sample(scene: &Scene, pixel: UVec2, index: u32) -> (Sampler, lumis_core::accel::Ray) {
+pub fn camera_sample(scene: &Scene, pixel: UVec2, index: u32) -> (Sampler, Ray) {
     let pixel_index = pixel.y as u64 * scene.width as u64 + pixel.x as u64;
     let mut sampler = Sampler::new(scene.seed, pixel_index, index as u64);
     let film = pixel.as_vec2() + sampler.next_2d();
@@ -156,7 +215,8 @@ pub fn emitted(scene: &Scene, hit: &Intersection, wi: Vec3) -> Rgb {
 }
 
 /// Averages `per_sample` over the pixel's camera samples: `per_sample` gets the sampler and, for
-/// camera rays that hit a surface, the shading point, and returns the reflected radiance.
+/// camera rays that hit a surface, the shading point, and returns the reflected radiance. Rays
+/// that leave the scene see the environment.
 pub fn render_pixel_with(
     scene: &Scene,
     pixel: UVec2,
@@ -165,12 +225,14 @@ pub fn render_pixel_with(
     let mut total = glam::DVec3::ZERO;
     for s in 0..scene.spp {
         let (mut sampler, ray) = camera_sample(scene, pixel, s);
-        let Some(hit) = scene.intersect(&ray) else {
-            continue;
+        let radiance = match scene.intersect(&ray) {
+            None => scene.environment_radiance(ray.direction),
+            Some(hit) => {
+                let emitted = emitted(scene, &hit, ray.direction);
+                let sp = ShadingPoint::new(scene, hit, -ray.direction);
+                emitted + per_sample(&sp, &mut sampler)
+            }
         };
-        let mut radiance = emitted(scene, &hit, ray.direction);
-        let sp = ShadingPoint::new(scene, hit, -ray.direction);
-        radiance += per_sample(&sp, &mut sampler);
         total += radiance.as_dvec3();
     }
     (total / scene.spp as f64).as_vec3()

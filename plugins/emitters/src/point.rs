@@ -1,0 +1,104 @@
+//! `point`: an isotropic point light, a delta emitter.
+//!
+//! Parameters:
+//! - `position` (vector, required): where the light is.
+//! - `intensity` (rgb, required, W/sr): radiant intensity.
+//! - `scale` (float, default 1): multiplies `intensity`.
+//!
+//! It is reached only by its own sample (one per shading point): the irradiance it gives a
+//! surface at distance d is I·cos θ / d². BSDF sampling can never hit it.
+
+use glam::{Vec2, Vec3};
+use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, EmitterSample, ReferencePoint};
+use lumis_core::math::Rgb;
+use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::EmitterPlugin;
+use std::sync::Arc;
+
+pub struct PointLight {
+    position: Vec3,
+    intensity: Rgb,
+}
+
+impl Emitter for PointLight {
+    fn sample_direction(&self, reference: &ReferencePoint, _u: Vec2) -> Option<EmitterSample> {
+        let to = self.position - reference.position;
+        let d2 = to.length_squared();
+        // A light at the shading point itself lights nothing measurable.
+        if !(d2 > 0.0 && d2.is_finite()) {
+            return None;
+        }
+        let radiance = self.intensity / d2;
+        radiance.is_finite().then(|| EmitterSample {
+            wi: to / d2.sqrt(),
+            position: Some(self.position),
+            normal: -to / d2.sqrt(),
+            pdf: 1.0,
+            radiance,
+            delta: true,
+        })
+    }
+
+    fn pdf_direction(&self, _: &ReferencePoint, _: Vec3, _: Option<&EmitterHit>) -> f32 {
+        0.0
+    }
+
+    fn eval(&self, _: Vec3, _: Option<&EmitterHit>) -> Rgb {
+        Rgb::ZERO
+    }
+
+    fn is_delta(&self) -> bool {
+        true
+    }
+}
+
+static PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "position",
+        kind: ParamKind::Vec3 { default: None },
+        unit: "",
+        description: "position of the light",
+    },
+    ParamSpec {
+        name: "intensity",
+        kind: ParamKind::Rgb {
+            default: None,
+            max: f32::INFINITY,
+        },
+        unit: "W/sr",
+        description: "radiant intensity",
+    },
+    ParamSpec {
+        name: "scale",
+        kind: ParamKind::Float {
+            default: Some(1.0),
+            min: 0.0,
+            max: f32::INFINITY,
+        },
+        unit: "",
+        description: "multiplies the intensity",
+    },
+];
+
+fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
+    if context.shape.is_some() {
+        return Err(PluginError::Invalid(
+            "a `point` light cannot be attached to a shape; list it under `emitters`".into(),
+        ));
+    }
+    let position = params.vec3("position")?;
+    let intensity = params.rgb("intensity")? * params.float("scale")?;
+    Ok(Arc::new(PointLight {
+        position,
+        intensity,
+    }))
+}
+
+inventory::submit! {
+    EmitterPlugin {
+        name: "point",
+        description: "isotropic point light (delta: one light sample, never hit)",
+        params: PARAMS,
+        create,
+    }
+}
