@@ -234,7 +234,7 @@ fn every_builtin_plugin_is_registered() {
                 .map(|p| p.name())
                 .collect()
         ),
-        "area"
+        "area,directional,envmap,point"
     );
     assert_eq!(
         names(
