@@ -340,3 +340,54 @@ fn output_must_be_exr() {
     let e = cli_error(SMALL_SCENE, &["-o", "out.png"]);
     assert_contains(&e, &["out.png", "must end in .exr"]);
 }
+
+#[test]
+fn missing_or_corrupt_environment_map_names_the_path_and_reason() {
+    let text = SMALL_SCENE.replace(
+        "    ],\n)",
+        "    ],\n    emitters: [(type: \"envmap\", file: \"maps/sky.exr\")],\n)",
+    );
+    let e = cli_error(&text, &[]);
+    assert_contains(
+        &e,
+        &[
+            "emitters[0] (envmap)",
+            "maps/sky.exr",
+            "cannot read EXR file",
+            "No such file",
+        ],
+    );
+    let (dir, path) = scene_file("scene.ron", &text);
+    std::fs::create_dir(dir.path().join("maps")).unwrap();
+    std::fs::write(dir.path().join("maps/sky.exr"), b"\x76\x2f\x31\x01garbage").unwrap();
+    let out = lumis(dir.path(), &["render", path.to_str().unwrap(), "--quiet"]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_contains(&e, &["maps/sky.exr", "is not a valid EXR file"]);
+}
+
+#[test]
+fn second_environment_and_lights_on_shapes_are_refused() {
+    let text = SMALL_SCENE.replace(
+        "    ],\n)",
+        "    ],\n    emitters: [(type: \"envmap\", file: \"a.exr\"), (type: \"envmap\", file: \"a.exr\")],\n)",
+    );
+    let (dir, path) = scene_file("scene.ron", &text);
+    exr::prelude::write_rgb_file(dir.path().join("a.exr"), 4, 2, |_, _| {
+        (1.0f32, 1.0f32, 1.0f32)
+    })
+    .unwrap();
+    let out = lumis(dir.path(), &["render", path.to_str().unwrap(), "--quiet"]);
+    assert_contains(
+        &String::from_utf8_lossy(&out.stderr),
+        &["emitters[1]", "at most one environment"],
+    );
+    let e = cli_error(
+        &SMALL_SCENE.replace(
+            "emitter: (type: \"area\", radiance: (5, 5, 5))",
+            "emitter: (type: \"point\", position: (0, 0, 0), intensity: 1)",
+        ),
+        &[],
+    );
+    assert_contains(&e, &["`point` light cannot be attached to a shape"]);
+}

@@ -527,3 +527,87 @@ fn measured_renders_like_the_brdf_it_was_tabulated_from() {
         "measured vs glossy: mean difference {mean}, se {se}, level {level}"
     );
 }
+
+/// Writes a constant-radiance environment map.
+fn write_uniform_envmap(path: &Path, radiance: f32) {
+    exr::prelude::write_rgb_file(path, 16, 8, |_, _| (radiance, radiance, radiance)).unwrap();
+}
+
+/// A diffuse floor under a uniform environment of radiance L reflects ρ·L (E = πL).
+#[test]
+fn uniform_environment_lights_a_diffuse_floor_to_rho_l() {
+    let dir = tempfile::tempdir().unwrap();
+    write_uniform_envmap(&dir.path().join("white.exr"), 2.0);
+    let text = r#"Scene(
+    camera: (position: (0.3, 1, -1), target: (0, 0, 0), fov: 0.01),
+    film: (width: 8, height: 8),
+    sampler: (spp: 4, seed: 2),
+    integrator: (type: "balance", samples: 16),
+    bsdfs: { "grey": (type: "diffuse", reflectance: 0.5) },
+    shapes: [(type: "rectangle", bsdf: "grey", transform: (scale: (5, 5, 1), rotate: [(axis: (1, 0, 0), angle: -90)]))],
+    emitters: [(type: "envmap", file: "white.exr")],
+)"#;
+    let path = dir.path().join("scene.ron");
+    std::fs::write(&path, text).unwrap();
+    let film = render_film(&path, &[], 2);
+    let (mean, se) = mean_and_standard_error(&film);
+    assert!(se < 0.02, "too noisy to test: se {se}");
+    assert!(
+        (mean - 1.0).abs() < 4.0 * se,
+        "mean {mean} (se {se}), expected 1"
+    );
+}
+
+/// Point and directional lights take one sample each and need no MIS: a diffuse floor under
+/// them has exactly ρ/π · (I/d² + E), up to the pixel's tiny footprint.
+#[test]
+fn delta_lights_give_exact_radiance() {
+    let text = r#"Scene(
+    camera: (position: (0.3, 1, -1), target: (0, 0, 0), fov: 0.01),
+    film: (width: 4, height: 4),
+    sampler: (spp: 2, seed: 2),
+    integrator: (type: "balance", samples: 4),
+    bsdfs: { "grey": (type: "diffuse", reflectance: 0.5) },
+    shapes: [(type: "rectangle", bsdf: "grey", transform: (scale: (5, 5, 1), rotate: [(axis: (1, 0, 0), angle: -90)]))],
+    emitters: [
+        (type: "point", position: (0, 2, 0), intensity: 8),
+        (type: "directional", direction: (0, -1, 0), irradiance: 3),
+    ],
+)"#;
+    let (_dir, path) = scene_file("delta.ron", text);
+    let film = render_film(&path, &[], 1);
+    let expected = 0.5 / std::f32::consts::PI * (8.0 / 4.0 + 3.0);
+    for c in &film.color {
+        assert!(
+            (c.x - expected).abs() < 1e-4 * expected,
+            "{} vs {expected}",
+            c.x
+        );
+    }
+    // The lights are never seen directly and a second light adds linearly: drop the point light.
+    let film = render_film(&path, &["emitters[0].intensity=0"], 1);
+    assert!((film.color[0].x - 0.5 / std::f32::consts::PI * 3.0).abs() < 1e-4);
+}
+
+/// A shadow ray toward a directional light goes to infinity: a roof blocks it.
+#[test]
+fn directional_light_is_blocked_by_an_occluder() {
+    let text = r#"Scene(
+    camera: (position: (0.3, 1, -1), target: (0, 0, 0), fov: 0.01),
+    film: (width: 2, height: 2),
+    integrator: (type: "balance", samples: 4),
+    bsdfs: { "grey": (type: "diffuse", reflectance: 0.5) },
+    shapes: [
+        (type: "rectangle", bsdf: "grey", transform: (scale: (5, 5, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        (type: "rectangle", bsdf: "grey", transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (0, 50, 0))),
+    ],
+    emitters: [(type: "directional", direction: (0, -1, 0), irradiance: 3)],
+)"#;
+    let (_dir, path) = scene_file("shadow.ron", text);
+    let film = render_film(&path, &[], 1);
+    assert!(
+        film.color.iter().all(|c| *c == glam::Vec3::ZERO),
+        "{:?}",
+        film.color[0]
+    );
+}

@@ -248,21 +248,16 @@ impl Simpson2D {
     }
 }
 
-/// χ² over bins, pooling those expecting fewer than 5 samples. Each bin's variance is its
-/// Poisson variance plus the square of its expected count's integration error. A bin that
-/// expects nothing but received samples makes the statistic infinite.
+/// χ² over bins, pooling those expecting fewer than 5 samples (including those whose integral
+/// is zero: samples there raise the pooled bin's statistic; samples where the density itself is
+/// zero are caught separately). Each bin's variance is its Poisson variance plus the square of
+/// its expected count's integration error.
 fn pooled_chi2(observed: &[f64], expected: &[f64], error: &[f64]) -> (f64, usize) {
     let mut order: Vec<usize> = (0..observed.len()).collect();
     order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
     let (mut chi2, mut bins) = (0.0, 0usize);
     let (mut pool_obs, mut pool_exp, mut pool_err) = (0.0, 0.0, 0.0);
     for &k in &order {
-        if expected[k] == 0.0 && error[k] == 0.0 {
-            if observed[k] > 0.0 {
-                return (f64::INFINITY, 1);
-            }
-            continue;
-        }
         if expected[k] < 5.0 || pool_exp > 0.0 && pool_exp < 5.0 {
             pool_obs += observed[k];
             pool_exp += expected[k];

@@ -142,20 +142,32 @@ impl Emitter for AreaEmitter {
     }
 
     fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32 {
-        let Some(hit) = hit else { return 0.0 };
-        match &self.surface {
-            Surface::Triangles { area, .. } => {
+        match (&self.surface, hit) {
+            (Surface::Triangles { area, .. }, Some(hit)) => {
                 Self::solid_angle_pdf(1.0 / area, hit.distance, hit.normal, wi)
             }
-            Surface::Sphere(s) => {
-                let d2 = (s.center - reference.position).length_squared();
-                if d2 <= s.radius * s.radius {
-                    let area = 4.0 * PI * s.radius * s.radius;
-                    Self::solid_angle_pdf(1.0 / area, hit.distance, hit.normal, wi)
-                } else {
-                    1.0 / (TAU * cone(s.radius, d2).1)
+            (Surface::Sphere(s), hit) => {
+                let to_center = s.center - reference.position;
+                let d2 = to_center.length_squared();
+                if d2 > s.radius * s.radius {
+                    // Outside: uniform in the cone. Membership is decided by sin θ from the cross
+                    // product (accurate for tiny cones), with a margin of a few f32 roundings of a
+                    // unit vector so that directions sampled on the silhouette stay inside.
+                    let sin_max = s.radius / d2.sqrt() + 2.5e-7;
+                    let sin2 = wi.cross(to_center).length_squared() / d2;
+                    let in_cone = wi.dot(to_center) > 0.0 && sin2 <= sin_max * sin_max;
+                    return if in_cone {
+                        1.0 / (TAU * cone(s.radius, d2).1)
+                    } else {
+                        0.0
+                    };
                 }
+                let area = 4.0 * PI * s.radius * s.radius;
+                hit.map_or(0.0, |h| {
+                    Self::solid_angle_pdf(1.0 / area, h.distance, h.normal, wi)
+                })
             }
+            (Surface::Triangles { .. }, None) => 0.0,
         }
     }
 

@@ -111,10 +111,12 @@ impl EnvironmentMap {
 }
 
 impl Emitter for EnvironmentMap {
-    fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let (uv, pdf_uv) = self.distribution.as_ref()?.sample(u);
-        let (wi, sin_theta) = self.to_direction(uv);
-        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
+    fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
+        let (uv, _) = self.distribution.as_ref()?.sample(u);
+        let (wi, _) = self.to_direction(uv);
+        // Radiance and density are those of the direction as `eval` and `pdf_direction` see it:
+        // on a pixel's edge, rounding can move it into the neighbour.
+        let pdf = self.pdf_direction(reference, wi, None);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -123,7 +125,7 @@ impl Emitter for EnvironmentMap {
             position: None,
             normal: -wi,
             pdf,
-            radiance: self.lookup(uv),
+            radiance: self.eval(wi, None),
             delta: false,
         })
     }
@@ -215,5 +217,75 @@ inventory::submit! {
         description: "equirectangular environment map, importance sampled by luminance × sin θ",
         params: PARAMS,
         create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(rotation: f32) -> EnvironmentMap {
+        EnvironmentMap::new(8, 4, vec![Rgb::ONE; 32], 1.0, rotation)
+    }
+
+    #[test]
+    fn directions_and_map_coordinates_round_trip_at_poles_and_seam() {
+        for rotation in [0.0, 30.0, -135.0] {
+            let m = map(rotation);
+            for uv in [
+                Vec2::new(0.5, 0.5),
+                Vec2::new(1e-6, 0.3),
+                Vec2::new(1.0 - 1e-6, 0.7),
+                Vec2::new(0.25, 1e-5),
+                Vec2::new(0.75, 1.0 - 1e-5),
+            ] {
+                let (d, _) = m.to_direction(uv);
+                assert!((d.length() - 1.0).abs() < 1e-5);
+                let (back, _) = m.to_uv(d);
+                // At the poles u is undefined; elsewhere u wraps at the seam.
+                let du = (back.x - uv.x).abs();
+                let pole = uv.y < 1e-4 || uv.y > 1.0 - 1e-4;
+                assert!(
+                    pole || du.min(1.0 - du) < 1e-4,
+                    "rotation {rotation}: {uv} -> {d} -> {back}"
+                );
+                assert!(
+                    (back.y - uv.y).abs() < 1e-3,
+                    "rotation {rotation}: {uv} -> {back}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn mapping_follows_the_documented_convention() {
+        let m = map(0.0);
+        assert!(
+            m.to_direction(Vec2::new(0.5, 0.5))
+                .0
+                .abs_diff_eq(-Vec3::Z, 1e-6)
+        );
+        assert!(
+            m.to_direction(Vec2::new(0.0, 0.5))
+                .0
+                .abs_diff_eq(Vec3::Z, 1e-6)
+        );
+        assert!(
+            m.to_direction(Vec2::new(0.25, 0.5))
+                .0
+                .abs_diff_eq(-Vec3::X, 1e-6)
+        );
+        assert!(
+            m.to_direction(Vec2::new(0.3, 0.0))
+                .0
+                .abs_diff_eq(Vec3::Y, 1e-6)
+        );
+        // Rotating by 90 degrees about +y carries the centre (-z) to -x.
+        let r = map(90.0);
+        assert!(
+            r.to_direction(Vec2::new(0.5, 0.5))
+                .0
+                .abs_diff_eq(-Vec3::X, 1e-6)
+        );
     }
 }
