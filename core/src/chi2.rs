@@ -299,7 +299,8 @@ impl Chi2Outcome {
         );
     }
 
-    /// Writes observed and expected histograms side by side (φ across, θ down) to the directory
+    /// Writes observed and expected histograms and their difference side by side (φ across, θ
+    /// down) to the directory
     /// `LUMIS_CHI2_DIR` or the system's temporary directory; returns the path or the problem.
     pub fn write_images(&self, name: &str) -> String {
         let dir = std::env::var_os("LUMIS_CHI2_DIR")
@@ -310,14 +311,34 @@ impl Chi2Outcome {
             .iter()
             .chain(&self.expected[..bins])
             .fold(0.0f64, |a, &b| a.max(b));
+        // Each bin drawn as a 4 × 4 block, observed left and expected right, with the signed
+        // difference (red: too many samples, blue: too few) in a third panel.
+        const ZOOM: u32 = 4;
         let (w, h) = (self.phi_bins as u32, self.theta_bins as u32);
-        let mut img = image::GrayImage::new(2 * w + 2, h);
+        let panel = w * ZOOM + 4;
+        let mut img = image::RgbImage::new(3 * panel, h * ZOOM);
+        let level = |v: f64| (255.0 * (v / max.max(1e-300)).sqrt()) as u8;
         for i in 0..h {
             for j in 0..w {
                 let k = (i * w + j) as usize;
-                let level = |v: f64| (255.0 * (v / max.max(1e-300)).sqrt()) as u8;
-                img.put_pixel(j, i, image::Luma([level(self.observed[k])]));
-                img.put_pixel(w + 2 + j, i, image::Luma([level(self.expected[k])]));
+                let (o, e) = (self.observed[k], self.expected[k]);
+                let z = (o - e) / e.max(1.0).sqrt();
+                let diff = [
+                    (25.0 * z.max(0.0)).min(255.0) as u8,
+                    0,
+                    (25.0 * (-z).max(0.0)).min(255.0) as u8,
+                ];
+                for (x0, color) in [
+                    (0, [level(o); 3]),
+                    (panel, [level(e); 3]),
+                    (2 * panel, diff),
+                ] {
+                    for dy in 0..ZOOM {
+                        for dx in 0..ZOOM {
+                            img.put_pixel(x0 + j * ZOOM + dx, i * ZOOM + dy, image::Rgb(color));
+                        }
+                    }
+                }
             }
         }
         let file: String = name
@@ -329,7 +350,10 @@ impl Chi2Outcome {
             .map_err(|e| e.to_string())
             .and_then(|_| img.save(&path).map_err(|e| e.to_string()))
         {
-            Ok(()) => format!("{} (left observed, right expected)", path.display()),
+            Ok(()) => format!(
+                "{} (observed, expected, difference in standard deviations)",
+                path.display()
+            ),
             Err(e) => format!("not written: {e}"),
         }
     }
@@ -358,6 +382,21 @@ mod tests {
             |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 },
         );
         assert!(bad.p_value < 1e-6, "{}", bad.p_value);
+    }
+
+    #[test]
+    fn failures_write_the_histograms_as_an_image() {
+        let dir = tempfile::tempdir().unwrap();
+        // SAFETY: tests in this module do not read the variable concurrently.
+        unsafe { std::env::set_var("LUMIS_CHI2_DIR", dir.path()) };
+        let test = Chi2Test { samples: 10_000, ..Default::default() };
+        let o = test.run(|s| Some(square_to_cosine_hemisphere(s.next_2d())), |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 });
+        let report = std::panic::catch_unwind(|| o.assert_passes(0.01, "cosine vs uniform"))
+            .expect_err("a wrong density fails");
+        let message = report.downcast_ref::<String>().unwrap();
+        let image = image::open(dir.path().join("cosine_vs_uniform.png")).unwrap();
+        assert_eq!((image.width(), image.height()), (3 * (64 * 4 + 4), 32 * 4));
+        assert!(message.contains("cosine_vs_uniform.png"), "{message}");
     }
 
     #[test]
