@@ -170,11 +170,17 @@ fn render(args: RenderArgs) -> Result<()> {
     }));
     image_io::write_exr(&film, &exr_path, &metadata)?;
     image_io::write_png(&film, &png_path, exposure)?;
+    let mut previews = Vec::new();
+    for (i, aov) in film.aovs.iter().enumerate().filter(|(_, a)| a.preview) {
+        let path = exr_path.with_extension(format!("{}.png", aov.name));
+        image_io::write_aov_png(&film, i, &path)?;
+        previews.push(path.display().to_string());
+    }
 
     if !args.quiet {
         let secs = stats.wall_time.as_secs_f64();
         eprintln!(
-            "{} ({}x{}, {} spp, {}, {} threads): loaded in {:.3} s, rendered in {:.3} s, {:.3} M samples/s, {:.2} M rays/s -> {} and {}",
+            "{} ({}x{}, {} spp, {}, {} threads): loaded in {:.3} s, rendered in {:.3} s, {:.3} M samples/s, {:.2} M rays/s -> {}",
             args.scene.display(),
             window.width,
             window.height,
@@ -185,8 +191,15 @@ fn render(args: RenderArgs) -> Result<()> {
             secs,
             stats.camera_samples as f64 / secs / 1e6,
             stats.rays as f64 / secs / 1e6,
-            exr_path.display(),
-            png_path.display()
+            [
+                vec![
+                    exr_path.display().to_string(),
+                    png_path.display().to_string()
+                ],
+                previews
+            ]
+            .concat()
+            .join(", ")
         );
     }
     Ok(())

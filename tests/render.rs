@@ -243,7 +243,7 @@ fn every_builtin_plugin_is_registered() {
                 .map(|p| p.name())
                 .collect()
         ),
-        "balance"
+        "alpha,balance,bsdf,light,max,power"
     );
 }
 
@@ -366,9 +366,10 @@ fn gltf_nodes_are_transformed_and_selectable_by_name() {
     );
 }
 
-/// Every bundled scene loads and renders (small, 1 spp) without a NaN, an Inf or a negative value.
+/// Every bundled scene renders (small, 1 spp) with every integrator and every AOV without a
+/// NaN, an Inf or a negative value.
 #[test]
-fn every_bundled_scene_renders_finite_values() {
+fn every_bundled_scene_renders_finite_values_with_every_integrator() {
     let mut count = 0;
     for entry in std::fs::read_dir(repo_path("scenes")).unwrap() {
         let path = entry.unwrap().path();
@@ -379,56 +380,39 @@ fn every_bundled_scene_renders_finite_values() {
         if std::fs::read_to_string(&path).unwrap().contains("plugins:") {
             example_library();
         }
-        let film = render_film(
-            &path,
-            &[
-                "film.width=24",
-                "film.height=16",
-                "sampler.spp=1",
-                "integrator.samples=4",
-            ],
-            2,
-        );
-        assert!(
-            film.color
-                .iter()
-                .all(|c| c.is_finite() && c.min_element() >= 0.0),
-            "{}: non-finite or negative pixel",
-            path.display()
-        );
-        assert!(
-            film.color.iter().any(|c| c.max_element() > 0.0),
-            "{}: black image",
-            path.display()
-        );
+        for integrator in ["bsdf", "light", "balance", "power", "max", "alpha"] {
+            let set = format!("integrator.type={integrator}");
+            let film = render_film(
+                &path,
+                &[
+                    "film.width=24",
+                    "film.height=16",
+                    "sampler.spp=1",
+                    &set,
+                    "integrator.samples=4",
+                    "integrator.aovs=[\"alpha\", \"sampling_variance\", \"samples\"]",
+                ],
+                2,
+            );
+            let name = format!("{} with {integrator}", path.display());
+            assert!(
+                film.color
+                    .iter()
+                    .all(|c| c.is_finite() && c.min_element() >= 0.0),
+                "{name}: bad pixel"
+            );
+            assert!(
+                film.aov_data.iter().all(|v| v.is_finite() && *v >= 0.0),
+                "{name}: bad AOV value"
+            );
+            assert!(
+                film.color.iter().any(|c| c.max_element() > 0.0),
+                "{name}: black image"
+            );
+        }
         count += 1;
     }
-    assert!(count >= 3, "found {count} scenes");
-}
-
-/// A mirror reflects an area light only through BSDF sampling: seen in a mirror floor, the
-/// light's image has the light's radiance times the mirror's reflectance.
-#[test]
-fn mirror_reflects_the_light_through_bsdf_samples() {
-    let text = r#"Scene(
-    camera: (position: (0, 1, -1), target: (0, 0, 0), fov: 0.01),
-    film: (width: 4, height: 4),
-    sampler: (spp: 1, seed: 0),
-    integrator: (type: "balance", samples: 8),
-    bsdfs: { "mirror": (type: "mirror", reflectance: 0.5), "black": (type: "diffuse", reflectance: 0) },
-    shapes: [
-        (type: "rectangle", bsdf: "mirror", transform: (scale: (5, 5, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
-        (type: "rectangle", bsdf: "black",
-            transform: (look_at: (origin: (0, 1, 1), target: (0, 0, 0)), scale: (0.5, 0.5, 1)),
-            emitter: (type: "area", radiance: 3)),
-    ],
-)"#;
-    let (_dir, path) = scene_file("mirror.ron", text);
-    let film = render_film(&path, &[], 1);
-    for c in &film.color {
-        // Exact: every BSDF sample of the mirror reaches the light; light samples add zero.
-        assert!((c.x - 1.5).abs() < 1e-5, "{c:?}");
-    }
+    assert!(count >= 8, "found {count} scenes");
 }
 
 /// Runs the asset-generating commands a scene documents in its comments

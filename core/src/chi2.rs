@@ -389,8 +389,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         // SAFETY: tests in this module do not read the variable concurrently.
         unsafe { std::env::set_var("LUMIS_CHI2_DIR", dir.path()) };
-        let test = Chi2Test { samples: 10_000, ..Default::default() };
-        let o = test.run(|s| Some(square_to_cosine_hemisphere(s.next_2d())), |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 });
+        let test = Chi2Test {
+            samples: 10_000,
+            ..Default::default()
+        };
+        let o = test.run(
+            |s| Some(square_to_cosine_hemisphere(s.next_2d())),
+            |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 },
+        );
         let report = std::panic::catch_unwind(|| o.assert_passes(0.01, "cosine vs uniform"))
             .expect_err("a wrong density fails");
         let message = report.downcast_ref::<String>().unwrap();

@@ -157,6 +157,31 @@ fn exr_error(path: &Path, e: exr::error::Error) -> String {
     }
 }
 
+/// Writes the first three channels of AOV `aov` as an 8-bit PNG of display colours in [0, 1]
+/// (no tone mapping: such AOVs already hold colours, e.g. the α map).
+pub fn write_aov_png(film: &Film, aov: usize, path: &Path) -> Result<(), OutputError> {
+    let (w, h) = (film.window.width, film.window.height);
+    let channels: Vec<Vec<f32>> = (0..3).map(|c| film.aov_channel(aov, c).collect()).collect();
+    let bytes: Vec<u8> = (0..(w * h) as usize)
+        .flat_map(|i| channels.iter().map(move |ch| ch[i]))
+        .map(|v| {
+            (if v.is_finite() {
+                v.clamp(0.0, 1.0)
+            } else {
+                0.0
+            } * 255.0
+                + 0.5) as u8
+        })
+        .collect();
+    let image = image::RgbImage::from_raw(w, h, bytes)
+        .ok_or_else(|| output_error(path, "bad image size"))?;
+    write_atomically(path, |file| {
+        image
+            .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
+            .map_err(|e| e.to_string())
+    })
+}
+
 /// An RGB image read from an EXR file, in row order.
 #[derive(Clone, Debug)]
 pub struct RgbImage {

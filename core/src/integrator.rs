@@ -10,6 +10,8 @@ use glam::UVec2;
 pub struct Aov {
     pub name: String,
     pub channels: Vec<String>,
+    /// Also written as `<output>.<name>.png`: three channels of display colours in [0, 1].
+    pub preview: bool,
 }
 
 /// Where `render_pixel` writes its results.
@@ -22,8 +24,9 @@ pub struct PixelOutput<'a> {
 
 /// A light-transport algorithm.
 pub trait Integrator: Send + Sync {
-    /// Extra output layers, if this configuration asks for any.
-    fn aovs(&self) -> Vec<Aov> {
+    /// Extra output layers, if this configuration asks for any (they may depend on the scene,
+    /// e.g. one per light).
+    fn aovs(&self, _scene: &Scene) -> Vec<Aov> {
         Vec::new()
     }
     /// Work done once per scene before the pixels (e.g. estimating α in a separate pass).

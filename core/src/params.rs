@@ -47,6 +47,10 @@ pub enum ParamKind {
     },
     /// A path, resolved relative to the scene file.
     Path,
+    /// A list of distinct options, e.g. `["alpha", "samples"]`; empty by default.
+    List {
+        options: &'static [&'static str],
+    },
     Choice {
         options: &'static [&'static str],
         default: &'static str,
@@ -75,6 +79,7 @@ impl ParamSpec {
             ParamKind::Interval { .. } => "interval",
             ParamKind::Str { .. } => "string",
             ParamKind::Path => "path",
+            ParamKind::List { .. } => "list",
             ParamKind::Choice { .. } => "choice",
         }
     }
@@ -97,6 +102,7 @@ impl ParamSpec {
             ParamKind::Interval { default, .. } => format!("({}, {})", default[0], default[1]),
             ParamKind::Str { default: Some(v) } => format!("{v:?}"),
             ParamKind::Choice { default, .. } => format!("{default:?}"),
+            ParamKind::List { .. } => "[]".to_string(),
             _ => "required".to_string(),
         }
     }
@@ -115,6 +121,7 @@ impl ParamSpec {
             ParamKind::Int { min, max, .. } => format!("[{min}, {max}]"),
             ParamKind::Rgb { max, .. } if max.is_finite() => format!("[0, {max}] per channel"),
             ParamKind::Choice { options, .. } => options.join(" | "),
+            ParamKind::List { options } => format!("any of {}", options.join(", ")),
             _ => String::new(),
         }
     }
@@ -477,6 +484,40 @@ impl Params {
                 range: format!("one of {}", options.join(", ")),
                 found: format!("{given:?}{}", did_you_mean(&given, options.iter().copied())),
             })
+    }
+
+    /// A list of distinct declared options (empty when not given).
+    pub fn list(&mut self, name: &str) -> Result<Vec<&'static str>, PluginError> {
+        let (spec, value) = self.take(name);
+        let ParamKind::List { options } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a list");
+        };
+        let expected = format!("a list of names among {}", options.join(", "));
+        let items = match value {
+            None => return Ok(Vec::new()),
+            Some(Value::Seq(items)) => items,
+            Some(v) => return Err(self.wrong_type(name, &expected, &v)),
+        };
+        let mut chosen = Vec::new();
+        for item in &items {
+            let Value::String(given) = item else {
+                return Err(self.wrong_type(name, &expected, item));
+            };
+            let option = options
+                .iter()
+                .copied()
+                .find(|o| o == given)
+                .ok_or_else(|| PluginError::OutOfRange {
+                    plugin: self.plugin.clone(),
+                    name: name.to_string(),
+                    range: format!("any of {}", options.join(", ")),
+                    found: format!("{given:?}{}", did_you_mean(given, options.iter().copied())),
+                })?;
+            if !chosen.contains(&option) {
+                chosen.push(option);
+            }
+        }
+        Ok(chosen)
     }
 
     /// Fails if a parameter was given but never read by the plugin (e.g. it does not apply to

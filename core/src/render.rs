@@ -35,7 +35,7 @@ pub fn render(
         .num_threads(threads)
         .build()?;
     let window = scene.window;
-    let mut film = Film::new(scene.width, scene.height, window, integrator.aovs());
+    let mut film = Film::new(scene.width, scene.height, window, integrator.aovs(scene));
     let channels = film.aov_channels();
     let tiles_x = window.width.div_ceil(TILE_SIZE);
     let tiles_y = window.height.div_ceil(TILE_SIZE);

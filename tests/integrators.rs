@@ -1,0 +1,315 @@
+//! The MIS integrator family: every integrator converges to the same image, `alpha` finds the
+//! supplemental's limits in scenes, beats `balance` on the Veach layout, and `alpha` with a
+//! fixed α of ½ is `balance` bit for bit.
+
+mod common;
+use common::{load, lumis, scene_file};
+use std::path::{Path, PathBuf};
+
+const INTEGRATORS: [&str; 6] = ["bsdf", "light", "balance", "power", "max", "alpha"];
+
+fn repo_path(relative: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+}
+
+fn render(path: &Path, overrides: &[String]) -> lumis::film::Film {
+    let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
+    let loaded = load(path, &overrides).expect("scene loads");
+    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
+        .expect("render")
+        .0
+}
+
+/// Paired test of equal means: under "both unbiased" the per-pixel differences d_p are
+/// independent with mean 0, so z = Σ d / √(Σ d²) is approximately standard normal.
+fn z_statistic(a: &lumis::film::Film, b: &lumis::film::Film) -> f64 {
+    let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
+    for (x, y) in a.color.iter().zip(&b.color) {
+        let d = (lumis::math::luminance(*x) - lumis::math::luminance(*y)) as f64;
+        sum += d;
+        sum_sq += d * d;
+    }
+    if sum_sq == 0.0 {
+        0.0
+    } else {
+        sum / sum_sq.sqrt()
+    }
+}
+
+/// A mirror sphere and a diffuse floor under the studio map.
+fn mirror_scene() -> (tempfile::TempDir, PathBuf) {
+    let text = format!(
+        r#"Scene(
+    camera: (position: (0, 1, -3), target: (0, 0.5, 0), fov: 40),
+    film: (width: 24, height: 18),
+    integrator: (type: "balance"),
+    bsdfs: {{ "mirror": (type: "mirror", reflectance: 0.9), "floor": (type: "diffuse", reflectance: 0.5) }},
+    shapes: [
+        (type: "sphere", bsdf: "mirror", center: (0, 0.6, 0), radius: 0.6),
+        (type: "rectangle", bsdf: "floor", transform: (scale: (4, 4, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+    ],
+    emitters: [(type: "envmap", file: {:?})],
+)"#,
+        repo_path("scenes/envmaps/studio.exr").to_str().unwrap()
+    );
+    scene_file("mirror.ron", &text)
+}
+
+#[test]
+fn every_integrator_converges_to_the_same_mean() {
+    let (_dir, mirror) = mirror_scene();
+    let scenes = [
+        ("diffuse + area lights", repo_path("scenes/cornell.ron")),
+        ("glossy + env map", repo_path("scenes/envmap.ron")),
+        ("mirror + env map", mirror),
+        ("point + directional + area", repo_path("scenes/lights.ron")),
+        ("Veach layout", repo_path("scenes/veach.ron")),
+    ];
+    for (name, path) in &scenes {
+        let base = |seed: usize, integrator: &str| {
+            vec![
+                "film.width=24".to_string(),
+                "film.height=18".to_string(),
+                "sampler.spp=2".to_string(),
+                format!("sampler.seed={seed}"),
+                format!("integrator.type={integrator}"),
+                "integrator.samples=16".to_string(),
+            ]
+        };
+        let reference = render(path, &base(100, "balance"));
+        for (i, integrator) in INTEGRATORS.iter().enumerate() {
+            let film = render(path, &base(i, integrator));
+            assert!(
+                film.color.iter().all(|c| c.is_finite()),
+                "{name}: {integrator} is not finite"
+            );
+            let z = z_statistic(&film, &reference);
+            assert!(
+                z.abs() < 3.0,
+                "{name}: {integrator} differs from balance by z = {z:.2}"
+            );
+        }
+    }
+}
+
+/// Mean of the raw combined α over pixels that have a shading point, with its standard error.
+fn mean_alpha(film: &lumis::film::Film) -> (f64, f64) {
+    let aov = film.aovs.iter().position(|a| a.name == "alpha").unwrap();
+    let colors: Vec<f32> = film.aov_channel(aov + 1, 0).collect();
+    let values: Vec<f64> = film
+        .aov_channel(aov, 0)
+        .zip(colors)
+        .filter(|(_, red)| *red > 0.0)
+        .map(|(a, _)| a as f64)
+        .collect();
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+fn alpha_scene(material: &str, light: &str, extra: &str) -> String {
+    format!(
+        r#"Scene(
+    camera: (position: (0, 1, -1), target: (0, 0, 0), fov: 20),
+    film: (width: 16, height: 16),
+    integrator: (type: "alpha", mode: "preprocessed", alpha_samples: 2048, clamp: (0, 1), samples: 4, aovs: ["alpha"]),
+    bsdfs: {{ "m": {material}, "black": (type: "diffuse", reflectance: 0) }},
+    shapes: [
+        (type: "rectangle", bsdf: "m", transform: (scale: (3, 3, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        {light}
+    ],
+    {extra}
+)"#
+    )
+}
+
+/// Supplemental §1.4: a highly specular lobe under a broad light gives α̂ → 3/4 (unclamped).
+#[test]
+fn near_mirror_lobe_under_a_broad_light_gives_three_quarters() {
+    let dir = tempfile::tempdir().unwrap();
+    exr::prelude::write_rgb_file(dir.path().join("sky.exr"), 32, 16, |_, _| {
+        (1.0f32, 1.0f32, 1.0f32)
+    })
+    .unwrap();
+    let text = alpha_scene(
+        r#"(type: "glossy", roughness: 0.001, specular: 1)"#,
+        "",
+        r#"emitters: [(type: "envmap", file: "sky.exr")],"#,
+    );
+    let path = dir.path().join("scene.ron");
+    std::fs::write(&path, text).unwrap();
+    let (alpha, se) = mean_alpha(&render(&path, &[]));
+    eprintln!("near-mirror α = {alpha} ± {se}");
+    assert!((alpha - 0.75).abs() < 0.02 + 4.0 * se, "α = {alpha} ± {se}");
+}
+
+/// Supplemental §1.4: a very small light over a diffuse surface gives α̂ → 1/4 (unclamped).
+#[test]
+fn tiny_light_over_a_diffuse_surface_gives_one_quarter() {
+    let text = alpha_scene(
+        r#"(type: "diffuse", reflectance: 0.8)"#,
+        r#"(type: "sphere", bsdf: "black", center: (0, 1, 0), radius: 0.001, emitter: (type: "area", radiance: 1e6)),"#,
+        "",
+    );
+    let (_dir, path) = scene_file("tiny.ron", &text);
+    let (alpha, se) = mean_alpha(&render(&path, &[]));
+    eprintln!("tiny-light α = {alpha} ± {se}");
+    assert!((alpha - 0.25).abs() < 0.02 + 4.0 * se, "α = {alpha} ± {se}");
+}
+
+/// Mean over pixels of the per-pixel sampling variance V[L_{1,α}].
+fn mean_sampling_variance(film: &lumis::film::Film) -> f64 {
+    let aov = film
+        .aovs
+        .iter()
+        .position(|a| a.name == "sampling_variance")
+        .unwrap();
+    let values: Vec<f64> = film.aov_channel(aov, 0).map(|v| v as f64).collect();
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
+#[test]
+fn alpha_has_lower_sampling_variance_than_balance_on_the_veach_layout() {
+    let path = repo_path("scenes/veach.ron");
+    let run = |integrator: &str| {
+        let film = render(
+            &path,
+            &[
+                "film.width=80".into(),
+                "film.height=60".into(),
+                format!("integrator.type={integrator}"),
+                "integrator.samples=64".into(),
+                "integrator.aovs=[\"sampling_variance\"]".into(),
+            ],
+        );
+        mean_sampling_variance(&film)
+    };
+    let (alpha, balance) = (run("alpha"), run("balance"));
+    eprintln!("Veach mean sampling variance: alpha {alpha}, balance {balance}");
+    assert!(alpha < balance, "alpha {alpha} vs balance {balance}");
+}
+
+#[test]
+fn fixed_alpha_of_one_half_is_balance_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo_path("scenes/veach.ron");
+    let common = [
+        "--set",
+        "film.width=32",
+        "--set",
+        "film.height=24",
+        "--set",
+        "integrator.samples=15",
+        "--quiet",
+    ];
+    for (out, sets) in [
+        ("balance.exr", vec!["integrator.type=balance"]),
+        (
+            "fixed.exr",
+            vec![
+                "integrator.type=alpha",
+                "integrator.mode=fixed",
+                "integrator.fixed=0.5",
+            ],
+        ),
+    ] {
+        let mut args = vec!["render", scene.to_str().unwrap(), "-o", out];
+        for s in &sets {
+            args.extend(["--set", s]);
+        }
+        args.extend(common);
+        let o = lumis(dir.path(), &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let a = lumis::image_io::read_exr_channels(&dir.path().join("balance.exr")).unwrap();
+    let b = lumis::image_io::read_exr_channels(&dir.path().join("fixed.exr")).unwrap();
+    let bits = |c: &[(String, Vec<f32>)]| {
+        c.iter()
+            .flat_map(|(_, v)| v.iter().map(|x| x.to_bits()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&a), bits(&b));
+}
+
+#[test]
+fn alpha_map_and_previews_are_written_when_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo_path("scenes/veach.ron");
+    let o = lumis(
+        dir.path(),
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            "v.exr",
+            "--quiet",
+            "--set",
+            "film.width=32",
+            "--set",
+            "film.height=24",
+            "--set",
+            "integrator.type=alpha",
+            "--set",
+            "integrator.samples=16",
+            "--set",
+            "integrator.aovs=[\"alpha\", \"sampling_variance\", \"samples\"]",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let channels = lumis::image_io::read_exr_channels(&dir.path().join("v.exr")).unwrap();
+    let names: Vec<&str> = channels.iter().map(|c| c.0.as_str()).collect();
+    for name in [
+        "alpha.combined",
+        "alpha.light0",
+        "alpha.light3",
+        "alpha_color.R",
+        "sampling_variance.Y",
+        "samples.bsdf",
+        "samples.light",
+    ] {
+        assert!(names.contains(&name), "{name} missing from {names:?}");
+    }
+    for (name, values) in &channels {
+        assert!(
+            values.iter().all(|v| v.is_finite()),
+            "{name} has a non-finite value"
+        );
+        if name.starts_with("alpha.") {
+            assert!(
+                values.iter().all(|v| (0.025..=0.975).contains(v)),
+                "{name} outside the clamp"
+            );
+        }
+    }
+    for png in [
+        "v.alpha_color.png",
+        "v.alpha_color_light0.png",
+        "v.alpha_color_light3.png",
+    ] {
+        assert!(dir.path().join(png).exists(), "{png} not written");
+    }
+    // Without the request, no layer and no preview.
+    let o = lumis(
+        dir.path(),
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            "w.exr",
+            "--quiet",
+            "--set",
+            "film.width=8",
+            "--set",
+            "film.height=8",
+        ],
+    );
+    assert!(o.status.success());
+    assert_eq!(
+        lumis::image_io::read_exr_channels(&dir.path().join("w.exr"))
+            .unwrap()
+            .len(),
+        3
+    );
+    assert!(!dir.path().join("w.alpha_color.png").exists());
+}
