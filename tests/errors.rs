@@ -389,5 +389,5 @@ fn second_environment_and_lights_on_shapes_are_refused() {
         ),
         &[],
     );
-    assert_contains(&e, &["`point` light cannot be attached to a shape"]);
+    assert_contains(&e, &["`point` emitter cannot be attached to a shape"]);
 }

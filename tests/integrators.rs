@@ -289,7 +289,8 @@ fn alpha_map_and_previews_are_written_when_asked_for() {
     ] {
         assert!(dir.path().join(png).exists(), "{png} not written");
     }
-    // Without the request, no layer and no preview.
+    // Without the request (the scene asks for α, an override asks for nothing), no layer and
+    // no preview.
     let o = lumis(
         dir.path(),
         &[
@@ -302,6 +303,8 @@ fn alpha_map_and_previews_are_written_when_asked_for() {
             "film.width=8",
             "--set",
             "film.height=8",
+            "--set",
+            "integrator.aovs=[]",
         ],
     );
     assert!(o.status.success());

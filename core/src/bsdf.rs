@@ -37,6 +37,26 @@ pub trait Bsdf: Send + Sync {
     fn flags(&self) -> BsdfFlags;
 }
 
+/// The sample of a direction `wi` drawn by a BSDF whose `pdf` is the density it was drawn with:
+/// pdf and weight eval/pdf from the BSDF itself, so they agree by construction. `None` below
+/// the horizon or where the density or the weight is not a positive finite number.
+pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
+    if !(wi.z > 0.0 && wi.is_finite()) {
+        return None;
+    }
+    let pdf = bsdf.pdf(wo, wi);
+    if !(pdf > 0.0 && pdf.is_finite()) {
+        return None;
+    }
+    let weight = bsdf.eval(wo, wi) / pdf;
+    weight.is_finite().then_some(BsdfSample {
+        wi,
+        pdf,
+        weight,
+        delta: false,
+    })
+}
+
 /// cos θ of a direction in the local shading frame.
 #[inline]
 pub fn cos_theta(w: Vec3) -> f32 {

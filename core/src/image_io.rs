@@ -119,6 +119,17 @@ pub fn write_exr(film: &Film, path: &Path, metadata: &Metadata) -> Result<(), Ou
     })
 }
 
+/// Writes 8-bit RGB pixels (row-major) as a PNG, atomically.
+fn write_rgb8_png(path: &Path, width: u32, height: u32, bytes: Vec<u8>) -> Result<(), OutputError> {
+    let image = image::RgbImage::from_raw(width, height, bytes)
+        .ok_or_else(|| output_error(path, "bad image size"))?;
+    write_atomically(path, |file| {
+        image
+            .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
+            .map_err(|e| e.to_string())
+    })
+}
+
 /// The sRGB transfer function.
 pub fn linear_to_srgb(v: f32) -> f32 {
     if v <= 0.003_130_8 {
@@ -141,13 +152,7 @@ pub fn write_png(film: &Film, path: &Path, exposure: f32) -> Result<(), OutputEr
             (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
         })
         .collect();
-    let image = image::RgbImage::from_raw(w, h, bytes)
-        .ok_or_else(|| output_error(path, "bad image size"))?;
-    write_atomically(path, |file| {
-        image
-            .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
-            .map_err(|e| e.to_string())
-    })
+    write_rgb8_png(path, w, h, bytes)
 }
 
 fn exr_error(path: &Path, e: exr::error::Error) -> String {
@@ -173,13 +178,7 @@ pub fn write_aov_png(film: &Film, aov: usize, path: &Path) -> Result<(), OutputE
                 + 0.5) as u8
         })
         .collect();
-    let image = image::RgbImage::from_raw(w, h, bytes)
-        .ok_or_else(|| output_error(path, "bad image size"))?;
-    write_atomically(path, |file| {
-        image
-            .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
-            .map_err(|e| e.to_string())
-    })
+    write_rgb8_png(path, w, h, bytes)
 }
 
 /// An RGB image read from an EXR file, in row order.

@@ -15,7 +15,7 @@
 //! the given ωo; `pdf` is exactly that mixture's density.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample};
+use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample, sample_from_pdf};
 use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use lumis_core::math::{Rgb, luminance};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -153,20 +153,7 @@ impl Bsdf for Glossy {
         } else {
             square_to_cosine_hemisphere(u)
         };
-        if wi.z <= 0.0 || !wi.is_finite() {
-            return None;
-        }
-        let pdf = self.pdf(wo, wi);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval(wo, wi) / pdf;
-        weight.is_finite().then_some(BsdfSample {
-            wi,
-            pdf,
-            weight,
-            delta: false,
-        })
+        sample_from_pdf(self, wo, wi)
     }
 
     fn flags(&self) -> BsdfFlags {

@@ -15,7 +15,7 @@
 //! reflects into can be drawn. `pdf` is exactly that mixture.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample};
+use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample, sample_from_pdf};
 use lumis_core::image_io::write_atomically;
 use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use lumis_core::math::{Distribution2D, Rgb, luminance};
@@ -282,17 +282,7 @@ impl Bsdf for Measured {
             }
             _ => square_to_cosine_hemisphere(u),
         };
-        let pdf = self.pdf(wo, wi);
-        if !(wi.z > 0.0 && pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval(wo, wi) / pdf;
-        weight.is_finite().then_some(BsdfSample {
-            wi,
-            pdf,
-            weight,
-            delta: false,
-        })
+        sample_from_pdf(self, wo, wi)
     }
 
     fn flags(&self) -> BsdfFlags {

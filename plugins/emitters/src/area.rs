@@ -193,16 +193,7 @@ static PARAMS: &[ParamSpec] = &[
         unit: "W/(m²·sr)",
         description: "emitted radiance",
     },
-    ParamSpec {
-        name: "scale",
-        kind: ParamKind::Float {
-            default: Some(1.0),
-            min: 0.0,
-            max: f32::INFINITY,
-        },
-        unit: "",
-        description: "multiplies the radiance",
-    },
+    crate::SCALE,
     ParamSpec {
         name: "two_sided",
         kind: ParamKind::Bool {

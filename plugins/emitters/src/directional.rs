@@ -63,24 +63,11 @@ static PARAMS: &[ParamSpec] = &[
         unit: "W/m²",
         description: "irradiance on a surface facing the light",
     },
-    ParamSpec {
-        name: "scale",
-        kind: ParamKind::Float {
-            default: Some(1.0),
-            min: 0.0,
-            max: f32::INFINITY,
-        },
-        unit: "",
-        description: "multiplies the irradiance",
-    },
+    crate::SCALE,
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    if context.shape.is_some() {
-        return Err(PluginError::Invalid(
-            "a `directional` light cannot be attached to a shape; list it under `emitters`".into(),
-        ));
-    }
+    crate::not_on_a_shape(context, "directional")?;
     let direction = params.vec3("direction")?;
     let Some(travel) = direction.try_normalize() else {
         return Err(PluginError::Invalid(format!(

@@ -162,16 +162,7 @@ static PARAMS: &[ParamSpec] = &[
         unit: "",
         description: "equirectangular RGB OpenEXR image, relative to the scene file",
     },
-    ParamSpec {
-        name: "scale",
-        kind: ParamKind::Float {
-            default: Some(1.0),
-            min: 0.0,
-            max: f32::INFINITY,
-        },
-        unit: "",
-        description: "multiplies the radiance",
-    },
+    crate::SCALE,
     ParamSpec {
         name: "rotation",
         kind: ParamKind::Float {
@@ -185,11 +176,7 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    if context.shape.is_some() {
-        return Err(PluginError::Invalid(
-            "an `envmap` cannot be attached to a shape; list it under `emitters`".into(),
-        ));
-    }
+    crate::not_on_a_shape(context, "envmap")?;
     let path = params.path("file")?;
     let scale = params.float("scale")?;
     let rotation = params.float("rotation")?;

@@ -68,24 +68,11 @@ static PARAMS: &[ParamSpec] = &[
         unit: "W/sr",
         description: "radiant intensity",
     },
-    ParamSpec {
-        name: "scale",
-        kind: ParamKind::Float {
-            default: Some(1.0),
-            min: 0.0,
-            max: f32::INFINITY,
-        },
-        unit: "",
-        description: "multiplies the intensity",
-    },
+    crate::SCALE,
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    if context.shape.is_some() {
-        return Err(PluginError::Invalid(
-            "a `point` light cannot be attached to a shape; list it under `emitters`".into(),
-        ));
-    }
+    crate::not_on_a_shape(context, "point")?;
     let position = params.vec3("position")?;
     let intensity = params.rgb("intensity")? * params.float("scale")?;
     Ok(Arc::new(PointLight {

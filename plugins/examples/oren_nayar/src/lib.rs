@@ -10,7 +10,7 @@
 //! the resulting `liblumis_oren_nayar.so` under a scene's `plugins`.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample};
+use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample, sample_from_pdf};
 use lumis_core::math::Rgb;
 use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -70,14 +70,7 @@ impl Bsdf for OrenNayar {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = square_to_cosine_hemisphere(u);
-        let pdf = cosine_hemisphere_pdf(wi.z);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            pdf,
-            weight: self.eval(wo, wi) / pdf,
-            delta: false,
-        })
+        sample_from_pdf(self, wo, square_to_cosine_hemisphere(u))
     }
 
     fn flags(&self) -> BsdfFlags {
