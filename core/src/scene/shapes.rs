@@ -142,6 +142,35 @@ pub fn cube() -> Mesh {
     mesh
 }
 
+/// sin and cos of an angle in degrees, exact at multiples of 90° (so that a plane turned by
+/// 90° has an exactly perpendicular normal, not one tilted by cos(π/2) ≈ −4e-8 in f32).
+fn sin_cos_degrees(degrees: f32) -> (f32, f32) {
+    let quarter_turns = degrees / 90.0;
+    if quarter_turns == quarter_turns.round() {
+        return match (quarter_turns as i64).rem_euclid(4) {
+            0 => (0.0, 1.0),
+            1 => (1.0, 0.0),
+            2 => (0.0, -1.0),
+            _ => (-1.0, 0.0),
+        };
+    }
+    let (sin, cos) = (degrees as f64).to_radians().sin_cos();
+    (sin as f32, cos as f32)
+}
+
+/// Rotation by `degrees` about the unit `axis` (Rodrigues' formula, right-handed).
+fn rotation(axis: Vec3, degrees: f32) -> Mat4 {
+    let (s, c) = sin_cos_degrees(degrees);
+    let t = 1.0 - c;
+    let Vec3 { x, y, z } = axis;
+    Mat4::from_cols(
+        glam::Vec4::new(c + t * x * x, t * x * y + s * z, t * x * z - s * y, 0.0),
+        glam::Vec4::new(t * x * y - s * z, c + t * y * y, t * y * z + s * x, 0.0),
+        glam::Vec4::new(t * x * z + s * y, t * y * z - s * x, c + t * z * z, 0.0),
+        glam::Vec4::W,
+    )
+}
+
 /// The matrix of a transform description, or a message saying what is wrong with it.
 pub fn transform_matrix(t: &TransformDescription) -> Result<Mat4, String> {
     let scale = Mat4::from_scale(Vec3::from(t.scale.unwrap_or([1.0; 3])));
@@ -179,7 +208,7 @@ pub fn transform_matrix(t: &TransformDescription) -> Result<Mat4, String> {
             if axis == Vec3::ZERO {
                 return Err("a rotation axis must not be zero".into());
             }
-            m = Mat4::from_axis_angle(axis, r.angle.to_radians()) * m;
+            m = rotation(axis, r.angle) * m;
         }
         Mat4::from_translation(Vec3::from(t.translate.unwrap_or([0.0; 3]))) * m
     };

@@ -64,9 +64,15 @@ impl<'a> ShadingPoint<'a> {
         !scene.occluded(&ray)
     }
 
-    /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there.
+    /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there. A
+    /// light point closer to the surface's plane than the rounding error of the shading point
+    /// (a light lying on the surface) is on no definite side of it, and lights nothing.
     fn eval_toward(&self, sample: &EmitterSample) -> Rgb {
-        if !self.reflects_toward(sample.wi) {
+        let height = self.normal.dot(sample.wi);
+        let undecided = sample.position.is_some_and(|p| {
+            height * (p - self.hit.position).length() <= self.normal.abs().dot(self.hit.error)
+        });
+        if height <= 0.0 || undecided {
             return Rgb::ZERO;
         }
         self.bsdf.eval(self.wo, self.frame.to_local(sample.wi))
