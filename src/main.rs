@@ -6,6 +6,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lumis::image_io::{self, Metadata};
 use std::io::IsTerminal;
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Parser)]
 #[command(
@@ -146,11 +148,17 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         bar
     };
-    let (film, stats) = lumis::render::render(
+    // Ctrl-C stops the render at the next tile; what is finished is written, marked partial.
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
+    let (film, stats) = lumis::render::render_cancellable(
         &loaded.scene,
         loaded.integrator.as_ref(),
         args.threads,
         &|n| bar.inc(n),
+        &cancel,
     )
     .context("cannot start the render threads")?;
     bar.finish_and_clear();
@@ -161,6 +169,11 @@ fn render(args: RenderArgs) -> Result<()> {
         ("integrator".into(), integrator.kind.clone()),
         ("spp".into(), loaded.scene.spp.to_string()),
         ("seed".into(), loaded.scene.seed.to_string()),
+        ("partial".into(), stats.partial().to_string()),
+        (
+            "tiles".into(),
+            format!("{} of {}", stats.tiles_done, stats.tiles_total),
+        ),
     ];
     metadata.extend(integrator.params.iter().map(|(k, v)| {
         (
@@ -177,6 +190,15 @@ fn render(args: RenderArgs) -> Result<()> {
         previews.push(path.display().to_string());
     }
 
+    if stats.partial() {
+        eprintln!(
+            "interrupted: wrote a partial image ({} of {} tiles) to {}",
+            stats.tiles_done,
+            stats.tiles_total,
+            exr_path.display()
+        );
+        std::process::exit(130);
+    }
     if !args.quiet {
         let secs = stats.wall_time.as_secs_f64();
         eprintln!(

@@ -595,3 +595,68 @@ fn directional_light_is_blocked_by_an_occluder() {
         film.color[0]
     );
 }
+
+/// Ctrl-C (SIGINT) during a render writes the finished tiles as a valid EXR and PNG marked
+/// partial, and exits with status 130.
+#[test]
+fn interrupted_render_writes_a_partial_image_and_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo_path("scenes/cornell.ron");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_lumis"))
+        .current_dir(dir.path())
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            "cut.exr",
+            "--quiet",
+            "--threads",
+            "1",
+        ])
+        .args(["--spp", "64", "--set", "integrator.samples=256"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(3000));
+    let status = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.contains("interrupted: wrote a partial image"),
+        "{stderr}"
+    );
+    let meta = exr::meta::MetaData::read_from_file(dir.path().join("cut.exr"), false).unwrap();
+    let Some(exr::meta::attribute::AttributeValue::Text(text)) = meta.headers[0]
+        .own_attributes
+        .other
+        .get(&exr::meta::attribute::Text::from("lumis"))
+    else {
+        panic!("no lumis attribute");
+    };
+    let text = text.to_string();
+    assert!(text.contains("partial=true\n"), "{text}");
+    // "tiles=K of N": some but not all tiles were finished, and they are in the image.
+    let tiles = text.lines().find_map(|l| l.strip_prefix("tiles=")).unwrap();
+    let (done, total) = tiles.split_once(" of ").unwrap();
+    let (done, total): (u32, u32) = (done.parse().unwrap(), total.parse().unwrap());
+    assert!(done > 0 && done < total, "{tiles}");
+    let channels = lumis::image_io::read_exr_channels(&dir.path().join("cut.exr")).unwrap();
+    let red = &channels.iter().find(|c| c.0 == "R").unwrap().1;
+    assert!(
+        red.iter().any(|v| *v > 0.0),
+        "the finished tiles are missing"
+    );
+    assert!(image::open(dir.path().join("cut.png")).is_ok());
+    assert!(
+        std::fs::read_dir(dir.path()).unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .ends_with(".tmp"))
+    );
+}

@@ -6,6 +6,7 @@ use crate::integrator::{Integrator, PixelOutput};
 use crate::scene::Scene;
 use glam::UVec2;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Tile edge in pixels: small enough to balance two cores on small images, large enough that
@@ -21,6 +22,16 @@ pub struct RenderStats {
     /// Ray queries (closest-hit and occlusion).
     pub rays: u64,
     pub threads: usize,
+    /// Tiles rendered, of all the window's tiles: fewer when the render was cancelled.
+    pub tiles_done: u32,
+    pub tiles_total: u32,
+}
+
+impl RenderStats {
+    /// Whether some tiles were skipped because the render was cancelled.
+    pub fn partial(&self) -> bool {
+        self.tiles_done < self.tiles_total
+    }
 }
 
 /// Renders the scene's window with `threads` worker threads (0: one per core). `on_tile` is
@@ -30,6 +41,18 @@ pub fn render(
     integrator: &dyn Integrator,
     threads: usize,
     on_tile: &(dyn Fn(u64) + Sync),
+) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
+    render_cancellable(scene, integrator, threads, on_tile, &AtomicBool::new(false))
+}
+
+/// As [`render`], but tiles not yet started when `cancel` becomes true are skipped (left black):
+/// the film then holds every finished tile, and the statistics say how many.
+pub fn render_cancellable(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    threads: usize,
+    on_tile: &(dyn Fn(u64) + Sync),
+    cancel: &AtomicBool,
 ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -44,6 +67,7 @@ pub fn render(
     let tiles: Vec<(UVec2, UVec2, Vec<glam::Vec3>, Vec<f32>)> = pool.install(|| {
         (0..tiles_x * tiles_y)
             .into_par_iter()
+            .filter(|_| !cancel.load(Ordering::Relaxed))
             .map(|t| {
                 let origin = UVec2::new((t % tiles_x) * TILE_SIZE, (t / tiles_x) * TILE_SIZE);
                 let size = UVec2::new(
@@ -72,6 +96,8 @@ pub fn render(
     });
     let wall_time = start.elapsed();
     let rays: u64 = pool.broadcast(|_| take_ray_count()).into_iter().sum();
+    let tiles_done = tiles.len() as u32;
+    let pixels_done: u64 = tiles.iter().map(|t| (t.1.x * t.1.y) as u64).sum();
 
     for (origin, size, color, aovs) in tiles {
         for y in 0..size.y {
@@ -85,9 +111,11 @@ pub fn render(
     }
     let stats = RenderStats {
         wall_time,
-        camera_samples: window.width as u64 * window.height as u64 * scene.spp as u64,
+        camera_samples: pixels_done * scene.spp as u64,
         rays,
         threads: pool.current_num_threads(),
+        tiles_done,
+        tiles_total: tiles_x * tiles_y,
     };
     Ok((film, stats))
 }
