@@ -16,3 +16,37 @@ pub fn link_plugins() {
     lumis_emitters::link();
     lumis_integrators::link();
 }
+
+/// Entry points shared by the fuzz targets (`fuzz/`) and the corpus replay test, so that both
+/// exercise exactly the same code. Each returns whether the input was accepted.
+pub mod fuzzing {
+    use std::path::Path;
+
+    /// Parses and builds a scene from RON text (assets are looked up in a directory that does
+    /// not exist, so file-loading errors are exercised too; plugin libraries are not loaded:
+    /// arbitrary input must not run arbitrary code, and the loader has its own tests).
+    pub fn scene(data: &[u8]) -> bool {
+        super::link_plugins();
+        let Ok(text) = std::str::from_utf8(data) else {
+            return false;
+        };
+        let path = Path::new("/nonexistent/fuzz.ron");
+        match crate::scene::load::parse_description(path, text, &[]) {
+            Ok(mut description) => {
+                description.plugins.clear();
+                crate::scene::load::build_scene(description, path).is_ok()
+            }
+            Err(_) => false,
+        }
+    }
+
+    /// Imports a glTF or GLB file from its bytes.
+    pub fn gltf(data: &[u8]) -> bool {
+        crate::scene::gltf::load_bytes(data, Path::new("/nonexistent"), None).is_ok()
+    }
+
+    /// Decodes an EXR image from its bytes.
+    pub fn exr(data: &[u8]) -> bool {
+        crate::image_io::decode_exr_rgb(data).is_ok()
+    }
+}

@@ -7,8 +7,8 @@ use crate::film::Film;
 use crate::math::Rgb;
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, IntegerBounds, Layer,
-    LayerAttributes, Text, Vec2, WritableImage, read_all_flat_layers_from_file,
-    read_first_rgba_layer_from_file,
+    LayerAttributes, ReadChannels, ReadLayers, Text, Vec2, WritableImage,
+    read_all_flat_layers_from_file,
 };
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -191,18 +191,28 @@ pub struct RgbImage {
 
 /// Reads the first RGB(A) layer of an EXR file; the error names the path and the reason.
 pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |resolution, _| RgbImage {
-            width: resolution.width(),
-            height: resolution.height(),
-            pixels: vec![Rgb::ZERO; resolution.area()],
-        },
-        |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            img.pixels[pos.y() * img.width + pos.x()] = Rgb::new(r, g, b);
-        },
-    )
-    .map_err(|e| exr_error(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| exr_error(path, exr::error::Error::Io(e)))?;
+    decode_exr_rgb(&bytes).map_err(|e| exr_error(path, e))
+}
+
+/// Decodes the first RGB(A) layer of EXR data held in memory; never panics on bad data.
+pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |resolution, _| RgbImage {
+                width: resolution.width(),
+                height: resolution.height(),
+                pixels: vec![Rgb::ZERO; resolution.area()],
+            },
+            |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                img.pixels[pos.y() * img.width + pos.x()] = Rgb::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))?;
     Ok(image.layer_data.channel_data.pixels)
 }
 

@@ -12,8 +12,13 @@ use std::path::Path;
 /// With `only`, keeps the node of that name (with its children) or else the mesh of that name.
 pub fn load(path: &Path, only: Option<&str>) -> Result<Mesh, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read glTF file: {e}"))?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not a valid glTF file: {e}"))?;
-    let base = path.parent().unwrap_or(Path::new("."));
+    load_bytes(&bytes, path.parent().unwrap_or(Path::new(".")), only)
+}
+
+/// As [`load`], from the file's bytes; external buffers are read from `base`. Never panics on
+/// bad data.
+pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh, String> {
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))?;
     let buffers = load_buffers(&gltf, base)?;
     let doc = &gltf.document;
 

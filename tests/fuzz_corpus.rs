@@ -1,0 +1,39 @@
+//! Replays the fuzzers' committed corpora (`fuzz/corpus/<target>/`) through the same entry
+//! points the fuzz targets call: every input must give a result or an error, never a panic, so
+//! a regression on anything the fuzzers once found fails here, in the ordinary test suite.
+
+use std::path::Path;
+
+fn replay(target: &str, run: fn(&[u8]) -> bool) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/corpus")
+        .join(target);
+    let mut inputs = 0;
+    let mut accepted = 0;
+    for entry in std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+        let path = entry.unwrap().path();
+        let data = std::fs::read(&path).unwrap();
+        let outcome = std::panic::catch_unwind(|| run(&data));
+        let ok = outcome.unwrap_or_else(|_| panic!("{target}: {} panicked", path.display()));
+        inputs += 1;
+        accepted += ok as usize;
+    }
+    assert!(inputs > 0, "{target}: empty corpus");
+    // The seeds include valid files: an entry point that refuses everything tests nothing.
+    assert!(accepted > 0, "{target}: no input of {inputs} was accepted");
+}
+
+#[test]
+fn scene_corpus_never_panics() {
+    replay("scene", lumis::fuzzing::scene);
+}
+
+#[test]
+fn gltf_corpus_never_panics() {
+    replay("gltf", lumis::fuzzing::gltf);
+}
+
+#[test]
+fn exr_corpus_never_panics() {
+    replay("exr", lumis::fuzzing::exr);
+}
