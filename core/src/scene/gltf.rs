@@ -18,6 +18,11 @@ pub fn load(path: &Path, only: Option<&str>) -> Result<Mesh, String> {
 /// As [`load`], from the file's bytes; external buffers are read from `base`. Never panics on
 /// bad data.
 pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh, String> {
+    // gltf 1.4's validation indexes `accessors` with a primitive's POSITION index before
+    // checking it (it panics on a dangling index, found by fuzzing): check indices first.
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+    check_accessor_indices(&unchecked)?;
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))?;
     let buffers = load_buffers(&gltf, base)?;
     let doc = &gltf.document;
@@ -69,6 +74,22 @@ pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh,
         return Err("the file has no triangles".into());
     }
     Ok(mesh)
+}
+
+/// Every accessor a mesh primitive names must exist.
+fn check_accessor_indices(gltf: &gltf::Gltf) -> Result<(), String> {
+    let json = gltf.document.as_json();
+    let count = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for primitive in &mesh.primitives {
+            let attributes = primitive.attributes.values().map(|i| i.value());
+            let indices = primitive.indices.iter().map(|i| i.value());
+            if let Some(bad) = attributes.chain(indices).find(|&i| i >= count) {
+                return Err(format!("mesh {m} refers to accessor {bad}, but the file has {count}"));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn load_buffers(gltf: &gltf::Gltf, base: &Path) -> Result<Vec<Vec<u8>>, String> {
