@@ -195,8 +195,30 @@ pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
     decode_exr_rgb(&bytes).map_err(|e| exr_error(path, e))
 }
 
+/// The largest image (in pixels) an EXR may declare: 2²⁷, a 16384 × 8192 environment map. The
+/// header's size is checked before any pixel memory is allocated (a corrupt header asked for
+/// terabytes; found by fuzzing).
+pub const MAX_EXR_PIXELS: usize = 1 << 27;
+
 /// Decodes the first RGB(A) layer of EXR data held in memory; never panics on bad data.
 pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        if size
+            .width()
+            .checked_mul(size.height())
+            .is_none_or(|area| area > MAX_EXR_PIXELS)
+        {
+            return Err(exr::error::Error::NotSupported(std::borrow::Cow::Owned(
+                format!(
+                    "{}x{} pixels is more than lumis reads ({MAX_EXR_PIXELS})",
+                    size.width(),
+                    size.height()
+                ),
+            )));
+        }
+    }
     let image = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
