@@ -37,3 +37,25 @@ fn gltf_corpus_never_panics() {
 fn exr_corpus_never_panics() {
     replay("exr", lumis::fuzzing::exr);
 }
+
+/// The defects the fuzzers found, kept as named inputs: each must be refused with an error.
+#[test]
+fn inputs_that_once_crashed_are_refused() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus");
+    let read = |p: &str| std::fs::read(corpus.join(p)).unwrap();
+    // gltf-json indexed `accessors` with a dangling POSITION index and panicked.
+    assert!(!lumis::fuzzing::gltf(&read(
+        "gltf/regression-dangling-position-accessor.gltf"
+    )));
+    // gltf's reader hit `unreachable!` on float indices.
+    assert!(!lumis::fuzzing::gltf(&read(
+        "gltf/regression-float-indices.gltf"
+    )));
+    // A header declaring 2^60 pixels made the EXR decoder allocate them.
+    assert!(!lumis::fuzzing::exr(&read(
+        "exr/regression-huge-data-window.exr"
+    )));
+    // The seeds they were derived from are accepted.
+    assert!(lumis::fuzzing::gltf(&read("gltf/triangle.gltf")));
+    assert!(lumis::fuzzing::exr(&read("exr/tiny_f32.exr")));
+}
