@@ -43,11 +43,7 @@ fn render_all(path: &Path, clamp: Option<(f32, f32)>) -> Vec<(&'static str, f64,
         if let Some(c) = clamp_set.as_ref().filter(|_| integrator == "alpha") {
             overrides.push(c);
         }
-        let loaded =
-            common::load(path, &overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let film = lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
-            .unwrap()
-            .0;
+        let film = common::render(path, &overrides, 2);
         let name = format!("{} with {integrator}", path.display());
         assert!(
             film.color
@@ -76,9 +72,7 @@ fn render_all(path: &Path, clamp: Option<(f32, f32)>) -> Vec<(&'static str, f64,
             .iter()
             .map(|c| lumis::math::luminance(*c) as f64)
             .collect();
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        let se = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+        let (mean, se) = common::mean_and_standard_error(&values);
         results.push((integrator, mean, se));
     }
     results

@@ -3,7 +3,7 @@
 //! fixed α of ½ is `balance` bit for bit.
 
 mod common;
-use common::{load, lumis, scene_file};
+use common::{lumis, scene_file};
 use std::path::{Path, PathBuf};
 
 const INTEGRATORS: [&str; 6] = ["bsdf", "light", "balance", "power", "max", "alpha"];
@@ -14,10 +14,7 @@ fn repo_path(relative: &str) -> PathBuf {
 
 fn render(path: &Path, overrides: &[String]) -> lumis::film::Film {
     let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
-    let loaded = load(path, &overrides).expect("scene loads");
-    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
-        .expect("render")
-        .0
+    common::render(path, &overrides, 2)
 }
 
 /// Paired test of equal means: under "both unbiased" the per-pixel differences d_p are
@@ -102,10 +99,7 @@ fn mean_alpha(film: &lumis::film::Film) -> (f64, f64) {
         .filter(|(_, red)| *red > 0.0)
         .map(|(a, _)| a as f64)
         .collect();
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
+    common::mean_and_standard_error(&values)
 }
 
 fn alpha_scene(material: &str, light: &str, extra: &str) -> String {

@@ -5,10 +5,7 @@ use common::{SMALL_SCENE, example_library, load, lumis, scene_file};
 use std::path::Path;
 
 fn render_film(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::Film {
-    let loaded = load(path, overrides).expect("scene loads");
-    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), threads, &|_| {})
-        .expect("render")
-        .0
+    common::render(path, overrides, threads)
 }
 
 fn repo_path(relative: &str) -> std::path::PathBuf {
@@ -133,10 +130,7 @@ fn exr_has_colour_channels_metadata_and_crop_window() {
 /// from the spread of the 64 independent pixel estimates.
 fn mean_and_standard_error(film: &lumis::film::Film) -> (f64, f64) {
     let values: Vec<f64> = film.color.iter().map(|c| c.y as f64).collect();
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (variance / n).sqrt())
+    common::mean_and_standard_error(&values)
 }
 
 fn floor_scene(light: &str) -> String {

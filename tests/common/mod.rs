@@ -88,3 +88,19 @@ pub fn example_library() -> &'static Path {
         path
     })
 }
+
+/// Mean of independent estimates and its standard error (from their sample variance).
+pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (variance / n).sqrt())
+}
+
+/// The renderer's render of a loaded scene with `threads` threads.
+pub fn render(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::Film {
+    let loaded = load(path, overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), threads, &|_| {})
+        .expect("render")
+        .0
+}
