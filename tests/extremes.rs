@@ -45,16 +45,7 @@ fn render_all(path: &Path, clamp: Option<(f32, f32)>) -> Vec<(&'static str, f64,
         }
         let film = common::render(path, &overrides, 2);
         let name = format!("{} with {integrator}", path.display());
-        assert!(
-            film.color
-                .iter()
-                .all(|c| c.is_finite() && c.min_element() >= 0.0),
-            "{name}: bad pixel"
-        );
-        assert!(
-            film.aov_data.iter().all(|v| v.is_finite() && *v >= 0.0),
-            "{name}: bad AOV"
-        );
+        common::assert_finite_outputs(&film, &name);
         if integrator == "alpha" {
             let (lo, hi) = clamp.unwrap_or((0.025, 0.975));
             let alpha = film.aovs.iter().position(|a| a.name == "alpha").unwrap();

@@ -118,7 +118,8 @@ fn alpha_scene(material: &str, light: &str, extra: &str) -> String {
     )
 }
 
-/// Supplemental §1.4: a highly specular lobe under a broad light gives α̂ → 3/4 (unclamped).
+/// Supplemental §1.4: a highly specular lobe under a broad light gives α̂ → 3/4 (unclamped). The
+/// limit is approached, not reached: 0.002 allows for a lobe of roughness 0.001, not a Dirac.
 #[test]
 fn near_mirror_lobe_under_a_broad_light_gives_three_quarters() {
     let dir = tempfile::tempdir().unwrap();
@@ -134,11 +135,14 @@ fn near_mirror_lobe_under_a_broad_light_gives_three_quarters() {
     let path = dir.path().join("scene.ron");
     std::fs::write(&path, text).unwrap();
     let (alpha, se) = mean_alpha(&render(&path, &[]));
-    eprintln!("near-mirror α = {alpha} ± {se}");
-    assert!((alpha - 0.75).abs() < 0.02 + 4.0 * se, "α = {alpha} ± {se}");
+    assert!(
+        (alpha - 0.75).abs() < 0.002 + 4.0 * se,
+        "α = {alpha} ± {se}"
+    );
 }
 
-/// Supplemental §1.4: a very small light over a diffuse surface gives α̂ → 1/4 (unclamped).
+/// Supplemental §1.4: a very small light over a diffuse surface gives α̂ → 1/4 (unclamped),
+/// within 0.002 for a light of 1 mm.
 #[test]
 fn tiny_light_over_a_diffuse_surface_gives_one_quarter() {
     let text = alpha_scene(
@@ -148,8 +152,10 @@ fn tiny_light_over_a_diffuse_surface_gives_one_quarter() {
     );
     let (_dir, path) = scene_file("tiny.ron", &text);
     let (alpha, se) = mean_alpha(&render(&path, &[]));
-    eprintln!("tiny-light α = {alpha} ± {se}");
-    assert!((alpha - 0.25).abs() < 0.02 + 4.0 * se, "α = {alpha} ± {se}");
+    assert!(
+        (alpha - 0.25).abs() < 0.002 + 4.0 * se,
+        "α = {alpha} ± {se}"
+    );
 }
 
 /// Mean over pixels of the per-pixel sampling variance V[L_{1,α}].
@@ -180,7 +186,6 @@ fn alpha_has_lower_sampling_variance_than_balance_on_the_veach_layout() {
         mean_sampling_variance(&film)
     };
     let (alpha, balance) = (run("alpha"), run("balance"));
-    eprintln!("Veach mean sampling variance: alpha {alpha}, balance {balance}");
     assert!(alpha < balance, "alpha {alpha} vs balance {balance}");
 }
 

@@ -317,11 +317,6 @@ impl Geometry {
         &self.shapes
     }
 
-    /// Number of primitives in the BVH.
-    pub fn primitive_count(&self) -> usize {
-        self.primitives.len()
-    }
-
     fn bvh_ray(ray: &Ray) -> BvhRay {
         // Adding +0 turns -0 components into +0: obvhs takes the direction's octant from the
         // comparison with zero but the inverse's sign from signum, which disagree for -0.

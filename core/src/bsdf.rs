@@ -56,9 +56,3 @@ pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option
         delta: false,
     })
 }
-
-/// cos θ of a direction in the local shading frame.
-#[inline]
-pub fn cos_theta(w: Vec3) -> f32 {
-    w.z
-}

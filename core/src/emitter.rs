@@ -27,13 +27,10 @@ pub struct EmitterSample {
     /// The sampled point on the emitter, for the shadow ray (`None`: infinitely far, as for
     /// directional lights and environments; the shadow ray then goes to infinity).
     pub position: Option<Vec3>,
-    /// Normal at the sampled point (for offsetting the shadow ray's end).
-    pub normal: Vec3,
     /// Density in solid angle; 1 for delta emitters.
     pub pdf: f32,
     /// Radiance arriving along `-wi` (for delta emitters: intensity / distance² or irradiance).
     pub radiance: Rgb,
-    pub delta: bool,
 }
 
 /// A light source.

@@ -104,3 +104,17 @@ pub fn render(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::F
         .expect("render")
         .0
 }
+
+/// Every pixel and every AOV value is finite and non-negative.
+pub fn assert_finite_outputs(film: &lumis::film::Film, name: &str) {
+    assert!(
+        film.color
+            .iter()
+            .all(|c| c.is_finite() && c.min_element() >= 0.0),
+        "{name}: bad pixel"
+    );
+    assert!(
+        film.aov_data.iter().all(|v| v.is_finite() && *v >= 0.0),
+        "{name}: bad AOV value"
+    );
+}

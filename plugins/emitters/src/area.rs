@@ -134,10 +134,8 @@ impl Emitter for AreaEmitter {
         Some(EmitterSample {
             wi,
             position: Some(position),
-            normal,
             pdf,
             radiance: self.radiance,
-            delta: false,
         })
     }
 

@@ -27,10 +27,8 @@ impl Emitter for DirectionalLight {
         Some(EmitterSample {
             wi: self.to_light,
             position: None,
-            normal: -self.to_light,
             pdf: 1.0,
             radiance: self.irradiance,
-            delta: true,
         })
     }
 

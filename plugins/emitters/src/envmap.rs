@@ -123,10 +123,8 @@ impl Emitter for EnvironmentMap {
         Some(EmitterSample {
             wi,
             position: None,
-            normal: -wi,
             pdf,
             radiance: self.eval(wi, None),
-            delta: false,
         })
     }
 

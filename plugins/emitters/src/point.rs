@@ -32,10 +32,8 @@ impl Emitter for PointLight {
         radiance.is_finite().then(|| EmitterSample {
             wi: to / d2.sqrt(),
             position: Some(self.position),
-            normal: -to / d2.sqrt(),
             pdf: 1.0,
             radiance,
-            delta: true,
         })
     }
 
