@@ -9,6 +9,8 @@ pub use lumis_core::*;
 pub use lumis_emitters as emitters;
 pub use lumis_integrators as integrators;
 
+pub mod study;
+
 /// Makes sure every built-in plugin crate is linked into the final program: a crate none of
 /// whose symbols is used may be dropped by the linker together with its registrations.
 pub fn link_plugins() {

@@ -24,6 +24,10 @@ struct Cli {
 enum Command {
     /// Render a scene to an EXR (colour and AOV layers) and a PNG preview beside it.
     Render(RenderArgs),
+    /// Measure the speed/accuracy trade of integrators on scenes: K runs each give sampling and
+    /// estimator variance, error against a reference, time and efficiency, written as
+    /// results.csv, results.md, plots and image panels in --out as each row finishes.
+    Study(StudyArgs),
     /// Write a MERL-format measured BRDF file tabulating any BSDF (e.g. to test `measured`).
     Merl {
         /// The BSDF to tabulate, as in a scene file: '(type: "glossy", roughness: 0.2)'.
@@ -70,11 +74,56 @@ struct RenderArgs {
     quiet: bool,
 }
 
+#[derive(clap::Args)]
+struct StudyArgs {
+    /// The scene files (RON).
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Integrators, comma-separated, each NAME[:key=value]... (e.g. alpha:mode=preprocessed).
+    #[arg(long, default_value = lumis::study::DEFAULT_INTEGRATORS)]
+    integrators: String,
+    /// N: samples per light per camera sample.
+    #[arg(long, default_value_t = 64)]
+    samples: u32,
+    /// K: independent runs (seeds) per configuration, at least 2.
+    #[arg(long, default_value_t = 4)]
+    runs: u32,
+    /// A reference image (EXR) for a single scene, instead of rendering one.
+    #[arg(long, conflicts_with = "reference_samples")]
+    reference: Option<PathBuf>,
+    /// Samples per light per pixel of the rendered reference (balance heuristic), cached next
+    /// to the scene as NAME.reference-WxH-S.exr with the parameters that made it.
+    #[arg(long, default_value_t = 4096)]
+    reference_samples: u32,
+    /// Also run every integrator with the N that matches `alpha`'s time.
+    #[arg(long)]
+    equal_time: bool,
+    /// Sweeps to run, comma-separated: clamp (Figure 2), m (Figure 7), n (Figures 3, 4), all, none.
+    #[arg(long, default_value = "all")]
+    sweeps: String,
+    /// Override scene values for every scene (repeatable), e.g. --set film.width=64.
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    overrides: Vec<String>,
+    /// Worker threads (default: one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Seed of the first run (runs use seed + 1 ... seed + K).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output directory.
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
 fn main() {
     let cli = Cli::parse();
     lumis::link_plugins();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Study(args) => study(args),
         Command::Merl { bsdf, output } => merl(&bsdf, &output),
         Command::Plugins { markdown } => {
             print!(
@@ -90,8 +139,83 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
-        std::process::exit(1);
+        let interrupted = e.downcast_ref::<lumis::study::Interrupted>().is_some();
+        std::process::exit(if interrupted { 130 } else { 1 });
     }
+}
+
+/// Splits a comma-separated list at the commas outside parentheses and brackets.
+fn split_list(list: &str) -> Vec<&str> {
+    let (mut depth, mut start, mut items) = (0i32, 0, Vec::new());
+    for (i, c) in list.char_indices() {
+        match c {
+            '(' | '[' => depth += 1,
+            ')' | ']' => depth -= 1,
+            ',' if depth == 0 => {
+                items.push(&list[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    items.push(&list[start..]);
+    items
+        .into_iter()
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+fn study(args: StudyArgs) -> Result<()> {
+    use lumis::study::{Choice, ReferenceSource, StudyConfig, Sweeps};
+    let config = StudyConfig {
+        scenes: args.scenes,
+        integrators: split_list(&args.integrators)
+            .into_iter()
+            .map(Choice::parse)
+            .collect::<Result<_>>()?,
+        samples: args.samples,
+        runs: args.runs,
+        reference: match args.reference {
+            Some(file) => ReferenceSource::File(file),
+            None => ReferenceSource::Samples(args.reference_samples),
+        },
+        equal_time: args.equal_time,
+        sweeps: Sweeps::parse(&args.sweeps)?,
+        overrides: args.overrides,
+        threads: args.threads,
+        seed: args.seed,
+        out: args.out,
+    };
+    let bar = if args.quiet || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} renders (eta {eta}) {msg}",
+            )
+            .context("progress bar template")?,
+        );
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        bar
+    };
+    // Ctrl-C stops at the next tile; every finished row is already written.
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
+    let start = std::time::Instant::now();
+    lumis::study::run(&config, &bar, &cancel)?;
+    if !args.quiet {
+        eprintln!(
+            "study of {} scene(s) finished in {:.1} s -> {}",
+            config.scenes.len(),
+            start.elapsed().as_secs_f64(),
+            config.out.join("results.md").display()
+        );
+    }
+    Ok(())
 }
 
 fn merl(spec: &str, output: &std::path::Path) -> Result<()> {

@@ -120,7 +120,12 @@ pub fn write_exr(film: &Film, path: &Path, metadata: &Metadata) -> Result<(), Ou
 }
 
 /// Writes 8-bit RGB pixels (row-major) as a PNG, atomically.
-fn write_rgb8_png(path: &Path, width: u32, height: u32, bytes: Vec<u8>) -> Result<(), OutputError> {
+pub fn write_rgb8_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    bytes: Vec<u8>,
+) -> Result<(), OutputError> {
     let image = image::RgbImage::from_raw(width, height, bytes)
         .ok_or_else(|| output_error(path, "bad image size"))?;
     write_atomically(path, |file| {
@@ -247,5 +252,25 @@ pub fn read_exr_channels(path: &Path) -> Result<Vec<(String, Vec<f32>)>, String>
         .list
         .iter()
         .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect())
+}
+
+/// The `lumis` metadata that [`write_exr`] stored in an EXR header (empty if there is none).
+pub fn read_exr_metadata(path: &Path) -> Result<Metadata, String> {
+    let file = std::fs::File::open(path).map_err(|e| exr_error(path, exr::error::Error::Io(e)))?;
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false)
+        .map_err(|e| exr_error(path, e))?;
+    let text =
+        meta.headers
+            .iter()
+            .find_map(|h| match h.own_attributes.other.get(&Text::from("lumis")) {
+                Some(AttributeValue::Text(text)) => Some(text.to_string()),
+                _ => None,
+            });
+    Ok(text
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|line| line.split_once('='))
+        .map(|(k, v)| (k.to_string(), v.to_string()))
         .collect())
 }

@@ -77,10 +77,17 @@ pub struct SamplerDescription {
     pub spp: u32,
     #[serde(default)]
     pub seed: u64,
+    /// Camera rays jittered within their pixel (antialiasing); false: through pixel centres.
+    #[serde(default = "default_jitter")]
+    pub jitter: bool,
 }
 
 fn default_spp() -> u32 {
     1
+}
+
+fn default_jitter() -> bool {
+    true
 }
 
 impl Default for SamplerDescription {
@@ -88,6 +95,7 @@ impl Default for SamplerDescription {
         SamplerDescription {
             spp: default_spp(),
             seed: 0,
+            jitter: default_jitter(),
         }
     }
 }

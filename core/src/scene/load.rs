@@ -207,18 +207,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         emitters.push(emitter);
     }
 
-    let spec = &desc.integrator;
-    let plugin = registry::find::<IntegratorPlugin>(&spec.kind)
-        .map_err(|e| err(format!("integrator: {e}")))?;
-    let mut params = Params::new(
-        format!("integrator `{}`", spec.kind),
-        plugin.params,
-        spec.params.clone(),
-    )
-    .map_err(|e| err(e.to_string()))?
-    .with_base_dir(base);
-    let integrator = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
-    params.finish().map_err(|e| err(e.to_string()))?;
+    let integrator = build_integrator(&desc.integrator, base).map_err(err)?;
 
     let output = match &film.output {
         Some(o) => PathBuf::from(o),
@@ -230,6 +219,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         height: film.height,
         window,
         spp: desc.sampler.spp,
+        jitter: desc.sampler.jitter,
         seed: desc.sampler.seed,
         geometry: Geometry::new(geometries),
         bsdfs,
@@ -245,6 +235,23 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         integrator,
         description: desc,
     })
+}
+
+/// Builds an integrator from its description (paths in its parameters are relative to `base`),
+/// e.g. to render one loaded scene with several integrators.
+pub fn build_integrator(spec: &PluginSpec, base: &Path) -> Result<Box<dyn Integrator>, String> {
+    let plugin =
+        registry::find::<IntegratorPlugin>(&spec.kind).map_err(|e| format!("integrator: {e}"))?;
+    let mut params = Params::new(
+        format!("integrator `{}`", spec.kind),
+        plugin.params,
+        spec.params.clone(),
+    )
+    .map_err(|e| e.to_string())?
+    .with_base_dir(base);
+    let integrator = (plugin.create)(&mut params).map_err(|e| e.to_string())?;
+    params.finish().map_err(|e| e.to_string())?;
+    Ok(integrator)
 }
 
 fn plugin_params(

@@ -27,6 +27,9 @@ pub struct Scene {
     /// Camera samples per pixel.
     pub spp: u32,
     pub seed: u64,
+    /// Camera rays jittered within their pixel; false: through pixel centres (so that runs with
+    /// different seeds shade the same points, as `lumis study` needs).
+    pub jitter: bool,
     pub geometry: Geometry,
     pub bsdfs: Vec<Arc<dyn Bsdf>>,
     /// Every light: area emitters of shapes in shape order, then the scene's `emitters` list.

@@ -14,7 +14,7 @@
 //! contributes weight · L_e / n_bsdf. Delta lights (point, directional) cannot be reached by BSDF
 //! sampling: each takes one light sample, with no MIS.
 
-use glam::{UVec2, Vec3};
+use glam::{UVec2, Vec2, Vec3};
 use lumis_core::accel::{Intersection, Ray};
 use lumis_core::bsdf::Bsdf;
 use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
@@ -306,7 +306,14 @@ pub fn second_order_alpha(i1: f64, i2: f64) -> Option<f64> {
 pub fn camera_sample(scene: &Scene, pixel: UVec2, index: u32) -> (Sampler, Ray) {
     let pixel_index = pixel.y as u64 * scene.width as u64 + pixel.x as u64;
     let mut sampler = Sampler::new(scene.seed, pixel_index, index as u64);
-    let film = pixel.as_vec2() + sampler.next_2d();
+    // The offset is drawn either way, so that the rest of the sample stream does not depend on it.
+    let offset = sampler.next_2d();
+    let film = pixel.as_vec2()
+        + if scene.jitter {
+            offset
+        } else {
+            Vec2::splat(0.5)
+        };
     (sampler, scene.camera.generate_ray(film))
 }
 
