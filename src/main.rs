@@ -113,6 +113,12 @@ struct StudyArgs {
     /// Output directory.
     #[arg(short, long, default_value = "study")]
     out: PathBuf,
+    /// Where to write the Markdown report (default: OUT/results.md); links are relative to it.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// A Markdown file (a reading of the results, written by hand) inserted after the summary.
+    #[arg(long)]
+    notes: Option<PathBuf>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -186,6 +192,8 @@ fn study(args: StudyArgs) -> Result<()> {
         threads: args.threads,
         seed: args.seed,
         out: args.out,
+        report: args.report,
+        notes: args.notes,
     };
     let bar = if args.quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
@@ -212,7 +220,7 @@ fn study(args: StudyArgs) -> Result<()> {
             "study of {} scene(s) finished in {:.1} s -> {}",
             config.scenes.len(),
             start.elapsed().as_secs_f64(),
-            config.out.join("results.md").display()
+            config.report_path().display()
         );
     }
     Ok(())

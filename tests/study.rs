@@ -41,7 +41,11 @@ const SCENES: [&str; 2] = ["cornell", "envmap"];
 
 #[test]
 fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_reference() {
-    let out = tempfile::tempdir().expect("temp dir");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("out");
+    let report = dir.path().join("report.md");
+    let notes = dir.path().join("notes.md");
+    std::fs::write(&notes, "A reading of the results, by hand.\n").expect("notes");
     let scenes: Vec<String> = SCENES
         .iter()
         .map(|s| {
@@ -52,7 +56,11 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
                 .to_string()
         })
         .collect();
-    let out_dir = out.path().display().to_string();
+    let (out_dir, report_file, notes_file) = (
+        out.display().to_string(),
+        report.display().to_string(),
+        notes.display().to_string(),
+    );
     let mut args: Vec<&str> = vec!["study"];
     args.extend(scenes.iter().map(String::as_str));
     args.extend([
@@ -73,6 +81,10 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
         "bsdf,light,balance,power,max,alpha,alpha:mode=preprocessed:alpha_samples=64",
         "--out",
         &out_dir,
+        "--report",
+        &report_file,
+        "--notes",
+        &notes_file,
         "--quiet",
     ]);
     let output = lumis(&repo(), &args);
@@ -82,7 +94,7 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
         String::from_utf8_lossy(&output.stderr)
     );
 
-    let rows = read_csv(&out.path().join("results.csv"));
+    let rows = read_csv(&out.join("results.csv"));
     // Equal samples: 7 integrators; equal time: all but the preprocessed α.
     assert_eq!(rows.len(), SCENES.len() * (7 + 6), "{rows:#?}");
     for scene in SCENES {
@@ -123,7 +135,7 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
             assert_eq!(number(row, "samples"), 8.0, "{what}");
         }
     }
-    let sweeps = read_csv(&out.path().join("sweeps.csv"));
+    let sweeps = read_csv(&out.join("sweeps.csv"));
     for scene in SCENES {
         let count = |sweep: &str| {
             sweeps
@@ -144,26 +156,28 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
         assert!(v.is_finite() && v > 0.0, "{p:?}");
     }
 
-    let md = std::fs::read_to_string(out.path().join("results.md")).expect("results.md");
+    // The report links into the output directory, relative to itself, and carries the notes.
+    let md = std::fs::read_to_string(&report).expect("the report");
     assert!(md.contains("## Summary: α against the balance heuristic"));
+    assert!(md.contains("A reading of the results, by hand."));
     for scene in SCENES {
         assert!(md.contains(&format!("## {scene} — ")), "{scene} section");
         for file in [
             format!("plots/{scene}-time.png"),
             format!("panels/{scene}.png"),
         ] {
-            assert!(md.contains(&file), "{file} linked");
-            let image = image::open(out.path().join(&file)).expect("a readable PNG");
+            assert!(md.contains(&format!("(out/{file})")), "{file} linked");
+            let image = image::open(out.join(&file)).expect("a readable PNG");
             assert!(image.width() > 48, "{file}");
         }
     }
     for plot in ["clamp", "m", "convergence-l1", "convergence-ln"] {
         let file = format!("plots/{plot}.png");
-        assert!(md.contains(&file), "{file} linked");
-        image::open(out.path().join(&file)).expect("a readable PNG");
+        assert!(md.contains(&format!("(out/{file})")), "{file} linked");
+        image::open(out.join(&file)).expect("a readable PNG");
     }
     // The panel: 4 × 2 tiles of the film's size with 4-pixel gaps.
-    let panel = image::open(out.path().join("panels/cornell.png")).expect("panel");
+    let panel = image::open(out.join("panels/cornell.png")).expect("panel");
     assert_eq!((panel.width(), panel.height()), (4 * 48 + 12, 2 * 32 + 4));
 }
 

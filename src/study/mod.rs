@@ -170,6 +170,18 @@ pub struct StudyConfig {
     pub threads: usize,
     pub seed: u64,
     pub out: PathBuf,
+    /// The Markdown report (default `out/results.md`); its links are relative to its directory.
+    pub report: Option<PathBuf>,
+    /// Markdown written by hand (a reading of the results) inserted after the summary.
+    pub notes: Option<PathBuf>,
+}
+
+impl StudyConfig {
+    pub fn report_path(&self) -> PathBuf {
+        self.report
+            .clone()
+            .unwrap_or_else(|| self.out.join("results.md"))
+    }
 }
 
 /// The study was interrupted; what it finished is written.
@@ -241,6 +253,10 @@ pub struct SceneResults {
 /// Runs a study, reporting progress on `bar` and stopping at the next tile once `cancel` is set.
 pub fn run(config: &StudyConfig, bar: &ProgressBar, cancel: &AtomicBool) -> Result<()> {
     validate(config)?;
+    if let Some(notes) = &config.notes {
+        std::fs::read_to_string(notes)
+            .with_context(|| format!("cannot read --notes `{}`", notes.display()))?;
+    }
     plots::register_font()?;
     std::fs::create_dir_all(&config.out)
         .with_context(|| format!("cannot create `{}`", config.out.display()))?;

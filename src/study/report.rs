@@ -132,8 +132,23 @@ fn mode(row: &Row) -> Option<&str> {
     (!row.mode.is_empty()).then_some(row.mode.as_str())
 }
 
+/// The prefix that makes a path inside the output directory relative to the report's directory.
+fn link_prefix(config: &StudyConfig) -> String {
+    let report = config.report_path();
+    let report_dir = report.parent().unwrap_or(Path::new(""));
+    match config.out.strip_prefix(report_dir) {
+        Ok(rel) if rel.as_os_str().is_empty() => String::new(),
+        Ok(rel) => format!("{}/", rel.display()),
+        Err(_) => match std::path::absolute(&config.out) {
+            Ok(abs) => format!("{}/", abs.display()),
+            Err(_) => format!("{}/", config.out.display()),
+        },
+    }
+}
+
 pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<()> {
     let mut md = String::new();
+    let prefix = link_prefix(config);
     let scene_list: Vec<String> = config
         .scenes
         .iter()
@@ -165,6 +180,10 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<(
          (Tables 1 and 2; its efficiency uses V[L₁]).\n"
     )?;
     summary(&mut md, scenes)?;
+    if let Some(notes) = &config.notes {
+        let text = std::fs::read_to_string(notes)?;
+        writeln!(md, "{}\n", text.trim_end())?;
+    }
     for (file, caption) in [
         (
             "plots/clamp.png",
@@ -184,14 +203,14 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<(
         ),
     ] {
         if config.out.join(file).exists() {
-            writeln!(md, "![{caption}]({file})\n\n*{caption}.*\n")?;
+            writeln!(md, "![{caption}]({prefix}{file})\n\n*{caption}.*\n")?;
         }
     }
     for results in scenes {
-        scene_section(&mut md, config, results)?;
+        scene_section(&mut md, config, results, &prefix)?;
     }
     let bytes = md.into_bytes();
-    write_atomically(&config.out.join("results.md"), |file| {
+    write_atomically(&config.report_path(), |file| {
         std::io::Write::write_all(file, &bytes).map_err(|e| e.to_string())
     })?;
     Ok(())
@@ -239,7 +258,12 @@ fn summary(md: &mut String, scenes: &[SceneResults]) -> Result<()> {
     Ok(())
 }
 
-fn scene_section(md: &mut String, config: &StudyConfig, s: &SceneResults) -> Result<()> {
+fn scene_section(
+    md: &mut String,
+    config: &StudyConfig,
+    s: &SceneResults,
+    prefix: &str,
+) -> Result<()> {
     writeln!(
         md,
         "## {} — `{}` ({}×{})\n",
@@ -341,7 +365,7 @@ fn scene_section(md: &mut String, config: &StudyConfig, s: &SceneResults) -> Res
         ),
     ] {
         if exists(&file) {
-            writeln!(md, "![{caption}]({file})\n\n*{caption}.*\n")?;
+            writeln!(md, "![{caption}]({prefix}{file})\n\n*{caption}.*\n")?;
         }
     }
     Ok(())
