@@ -1,10 +1,14 @@
 #!/bin/sh
-# Generates the scene assets that are not committed (see scenes/README.md): the MERL-format
-# measured BRDFs (35 MB each, git-ignored), tabulated from analytic BSDFs because no measured data
-# can be downloaded here. Run from the repository root:
+# Generates the scene assets that are not committed: the MERL-format measured BRDFs (35 MB each,
+# git-ignored), tabulated from analytic BSDFs by `lumis merl` because no measured data can be
+# downloaded here. Run from the repository root:
 #   scenes/generate.sh
-# Builds the release binary (cargo does nothing if it is up to date) and skips files that already
-# exist (delete one to regenerate it).
+#
+# The commands come from the scenes themselves: every comment line of the form
+#   //   cargo run --release -- merl --bsdf '(...)' -o scenes/measured/NAME.binary
+# in scenes/*.ron and scenes/paper/*.ron (the same lines the test suite runs), so a scene that
+# documents a new asset needs no change here. Builds the release binary first (cargo does nothing
+# if it is up to date); skips files that already exist (delete one to regenerate it).
 set -eu
 
 if [ ! -f Cargo.toml ] || [ ! -d scenes ]; then
@@ -15,23 +19,23 @@ fi
 cargo build --release --quiet
 lumis=target/release/lumis
 
-mkdir -p scenes/measured
-
-# merl NAME BSDF: write scenes/measured/NAME.binary tabulating BSDF, unless it exists.
-merl() {
-    out="scenes/measured/$1.binary"
+grep -h '^//   cargo run --release -- merl ' scenes/*.ron scenes/paper/*.ron | sort -u |
+while IFS= read -r line; do
+    # The arguments after `--`, split as the shell would (the BSDF is in single quotes).
+    eval "set -- ${line#*-- }"
+    if [ "$#" -ne 5 ] || [ "$1" != merl ] || [ "$2" != --bsdf ] || [ "$4" != -o ]; then
+        echo "scenes/generate.sh: cannot read: $line" >&2
+        exit 1
+    fi
+    out=$5
     if [ -f "$out" ]; then
-        echo "exists:    $out"
+        echo "exists:  $out"
     else
-        echo "writing:   $out"
-        # Written under another name first (still git-ignored), so an interrupted run leaves no
+        echo "writing: $out"
+        mkdir -p "$(dirname "$out")"
+        # Written under another (still git-ignored) name first, so an interrupted run leaves no
         # truncated file that a later run would skip.
-        "$lumis" merl --bsdf "$2" -o "$out.partial.binary"
+        "$lumis" merl --bsdf "$3" -o "$out.partial.binary"
         mv "$out.partial.binary" "$out"
     fi
-}
-
-# scenes/measured.ron and scenes/paper/11.ron
-merl copper '(type: "glossy", roughness: 0.15, specular: (0.95, 0.64, 0.54), diffuse: (0.05, 0.03, 0.02))'
-# scenes/paper/11.ron
-merl acrylic '(type: "glossy", roughness: 0.05, specular: 0.05, diffuse: (0.04, 0.12, 0.4))'
+done
