@@ -360,12 +360,13 @@ fn gltf_nodes_are_transformed_and_selectable_by_name() {
     );
 }
 
-/// Every bundled scene renders (small, 1 spp) with every integrator and every AOV without a
-/// NaN, an Inf or a negative value.
+/// Every bundled scene (`scenes/` and the paper's, `scenes/paper/`) renders (small, 1 spp) with
+/// every integrator and every AOV without a NaN, an Inf or a negative value.
 #[test]
 fn every_bundled_scene_renders_finite_values_with_every_integrator() {
     let mut count = 0;
-    for entry in std::fs::read_dir(repo_path("scenes")).unwrap() {
+    let dirs = ["scenes", "scenes/paper"].map(|dir| std::fs::read_dir(repo_path(dir)).unwrap());
+    for entry in dirs.into_iter().flatten() {
         let path = entry.unwrap().path();
         if path.extension().is_none_or(|e| e != "ron") {
             continue;
@@ -397,7 +398,7 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
         }
         count += 1;
     }
-    assert!(count >= 8, "found {count} scenes");
+    assert!(count >= 19, "found {count} scenes");
 }
 
 /// Runs the asset-generating commands a scene documents in its comments
