@@ -103,7 +103,7 @@ impl Choice {
 
 /// The default integrator list: every member of the MIS family, α both ways.
 pub const DEFAULT_INTEGRATORS: &str =
-    "bsdf,light,balance,power,max,alpha,alpha:mode=preprocessed:alpha_samples=1024";
+    "bsdf,light,balance,power,max,alpha,alpha:mode=preprocessed:alpha_samples=256";
 
 /// Where the reference image comes from.
 #[derive(Clone, Debug)]
@@ -487,7 +487,7 @@ impl Study<'_> {
             }
         }
         if config.sweeps.convergence {
-            let fixed_m = (n / 2).max(1);
+            let fixed_m = (n / 4).max(1);
             let balance = Choice::parse("balance")?;
             for multiple in CONVERGENCE_MULTIPLES {
                 let samples = fixed_m * multiple;

@@ -195,7 +195,7 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<(
         ),
         (
             "plots/convergence-l1.png",
-            "Integrated α with M = N/2 of the study fixed (paper Figure 3): V[L₁] against N, relative to the preprocessed α of the table",
+            "Integrated α with M = N/4 of the study fixed (paper Figure 3): V[L₁] against N, relative to the preprocessed α of the table",
         ),
         (
             "plots/convergence-ln.png",
