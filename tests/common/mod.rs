@@ -56,7 +56,7 @@ pub fn example_library() -> &'static Path {
     static LIBRARY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     LIBRARY.get_or_init(|| {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        // The tests' profile, so that the build reuses their compiled dependencies.
+        // The test profile, so that `cargo test` reuses its compiled dependencies.
         let status = Command::new(cargo)
             .args([
                 "build",
@@ -70,14 +70,15 @@ pub fn example_library() -> &'static Path {
             .status()
             .expect("run cargo");
         assert!(status.success(), "building the example plugin failed");
-        // target/debug/deps/<this test> -> target/debug
+        // target/<profile>/deps/<this test> -> target/debug, where the test profile builds (and
+        // where scenes/plugin.ron looks) whatever profile the tests themselves run under.
         let dir = std::env::current_exe()
             .unwrap()
             .parent()
             .unwrap()
             .parent()
             .unwrap()
-            .to_path_buf();
+            .with_file_name("debug");
         let file = format!(
             "{}lumis_oren_nayar{}",
             std::env::consts::DLL_PREFIX,
