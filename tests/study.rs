@@ -128,6 +128,7 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
             "rel_mse",
             "lab_error",
             "time",
+            "cpu_time",
             "efficiency",
             "mean_sigma",
         ] {

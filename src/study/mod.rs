@@ -4,9 +4,9 @@
 //! For each scene and integrator, K independent runs (seeds `seed + 1` … `seed + K`) give the mean
 //! sampling variance V[L_{1,α}] (the integrators' `sampling_variance` AOV averaged over pixels),
 //! the estimator variance V[L_{N,α}] (each pixel's variance across the runs, averaged), the
-//! relative MSE and the mean Lab ΔE*ab against a reference, the median wall time, and the
-//! efficiency 1 / (V[L_{N,α}] × time). With `equal_time`, every integrator is run again with
-//! the N that matches the `alpha` integrator's time. Sweeps vary α's clamping interval
+//! relative MSE and the mean Lab ΔE*ab against a reference, the median wall time and CPU time,
+//! and the efficiency 1 / (V[L_{N,α}] × CPU time). With `equal_time`, every integrator is run
+//! again with the N that matches the `alpha` integrator's CPU time. Sweeps vary α's clamping interval
 //! (Figure 2), its pilot count M (Figure 7) and N for a fixed M (Figures 3 and 4).
 //!
 //! Results are written as each row finishes (`results.csv`, `sweeps.csv`, `results.md`), plots
@@ -207,6 +207,7 @@ struct Measurement {
     rel_mse: f64,
     lab_error: f64,
     time: f64,
+    cpu_time: f64,
     /// The first run's image and α map (for the panels).
     image: Vec<Rgb>,
     alpha_map: Option<Vec<[f32; 3]>>,
@@ -358,11 +359,12 @@ impl Study<'_> {
         let mut times = Vec::new();
         for choice in &config.integrators {
             let m = self.measure(&name, &mut loaded, &base, choice, config.samples, &[], true)?;
-            times.push(m.time);
+            times.push(m.cpu_time);
             images.keep(choice, &m, false);
             self.add_row(choice, "equal samples", &m)?;
         }
-        // Equal time: N scaled by the ratio of times (render time is close to linear in N).
+        // Equal time: N scaled by the ratio of CPU times (close to linear in N). CPU time, not
+        // wall time, so that other programs running on the machine do not skew the match.
         if config.equal_time {
             let alpha = config
                 .integrators
@@ -432,7 +434,8 @@ impl Study<'_> {
             rel_mse: m.rel_mse,
             lab_error: m.lab_error,
             time: m.time,
-            efficiency: 1.0 / (estimator_variance * m.time),
+            cpu_time: m.cpu_time,
+            efficiency: 1.0 / (estimator_variance * m.cpu_time),
             mean,
             mean_sigma: sigma,
             reference_mean: ref_mean,
@@ -525,8 +528,9 @@ impl Study<'_> {
         let reference = &self.current().reference;
         let pixels = (loaded.scene.window.width * loaded.scene.window.height) as usize;
         let mut runs = RunStatistics::new(pixels);
-        let (mut sampling, mut medians, mut rel_mse, mut lab, mut times) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut sampling, mut medians, mut rel_mse, mut lab) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut times, mut cpu_times) = (Vec::new(), Vec::new());
         let mut image = Vec::new();
         let mut alpha_map = None;
         let exposure = loaded.scene.exposure.exp2();
@@ -542,7 +546,7 @@ impl Study<'_> {
                 config.runs
             ));
             loaded.scene.seed = config.seed + 1 + k as u64;
-            let (film, time) = self.render(&loaded.scene, integrator.as_mut())?;
+            let (film, time, cpu_time) = self.render(&loaded.scene, integrator.as_mut())?;
             runs.add(&film.color);
             let variance = aov(&film, "sampling_variance", 0)
                 .context("the integrator has no sampling_variance AOV")?;
@@ -556,6 +560,7 @@ impl Study<'_> {
                 lab.push(delta.iter().sum::<f64>() / pixels as f64);
             }
             times.push(time);
+            cpu_times.push(cpu_time);
             if k == 0 {
                 alpha_map = alpha_colors(&film);
                 image = film.color;
@@ -576,14 +581,17 @@ impl Study<'_> {
             rel_mse: mean(&rel_mse),
             lab_error: mean(&lab),
             time: metrics::median(&mut times),
+            cpu_time: metrics::median(&mut cpu_times),
             runs,
             image,
             alpha_map,
         })
     }
 
-    /// Renders, failing with [`Interrupted`] if the user stopped the study.
-    fn render(&self, scene: &Scene, integrator: &mut dyn Integrator) -> Result<(Film, f64)> {
+    /// Renders, failing with [`Interrupted`] if the user stopped the study; also returns the
+    /// wall time and the CPU time of the render.
+    fn render(&self, scene: &Scene, integrator: &mut dyn Integrator) -> Result<(Film, f64, f64)> {
+        let cpu_start = process_cpu_time();
         integrator.preprocess(scene);
         let (film, stats) = lumis_core::render::render_cancellable(
             scene,
@@ -596,7 +604,9 @@ impl Study<'_> {
         if stats.partial() {
             return Err(Interrupted(self.config.out.clone()).into());
         }
-        Ok((film, stats.wall_time.as_secs_f64()))
+        let wall = stats.wall_time.as_secs_f64();
+        let cpu = process_cpu_time() - cpu_start;
+        Ok((film, wall, if cpu.is_finite() { cpu } else { wall }))
     }
 
     /// The scene's reference: the user's file, a cached render with the same parameters, or a
@@ -641,7 +651,7 @@ impl Study<'_> {
         let rendered = self.render(&loaded.scene, integrator.as_mut());
         loaded.scene.spp = spp;
         loaded.scene.seed = seed;
-        let (film, time) = rendered?;
+        let (film, time, _) = rendered?;
         let metadata: Metadata = vec![
             ("scene".into(), path.display().to_string()),
             ("key".into(), key),
@@ -655,6 +665,22 @@ impl Study<'_> {
         reference.time = Some(time);
         Ok(reference)
     }
+}
+
+/// CPU seconds used by this process so far (all threads), or NaN where it cannot be read.
+fn process_cpu_time() -> f64 {
+    #[cfg(unix)]
+    {
+        let mut t = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: clock_gettime writes one timespec through a valid pointer.
+        if unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) } == 0 {
+            return t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9;
+        }
+    }
+    f64::NAN
 }
 
 /// Identifies what a cached reference was made from: the scene text, the overrides, the

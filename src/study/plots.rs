@@ -176,7 +176,7 @@ pub fn scene_plots(out: &Path, results: &SceneResults) -> Result<()> {
                     .rows
                     .iter()
                     .filter(|r| r.integrator == *label)
-                    .map(|r| (r.time, value(r)))
+                    .map(|r| (r.cpu_time, value(r)))
                     .collect();
                 points.sort_by(|a, b| a.0.total_cmp(&b.0));
                 points.dedup();
@@ -189,8 +189,8 @@ pub fn scene_plots(out: &Path, results: &SceneResults) -> Result<()> {
     };
     let variance = series(|r| r.estimator_variance);
     let error = series(|r| r.rel_mse);
-    let title_v = format!("{}: V[L_N] against time", results.name);
-    let title_e = format!("{}: relative MSE against time", results.name);
+    let title_v = format!("{}: V[L_N] against CPU time", results.name);
+    let title_e = format!("{}: relative MSE against CPU time", results.name);
     png(
         &out.join("plots").join(format!("{}-time.png", results.name)),
         (1200, 480),
@@ -201,7 +201,7 @@ pub fn scene_plots(out: &Path, results: &SceneResults) -> Result<()> {
                 &halves[0],
                 &Axes {
                     title: &title_v,
-                    x: ("time (s)", log),
+                    x: ("CPU time (s)", log),
                     y: ("V[L_N]", log),
                 },
                 &variance,
@@ -210,7 +210,7 @@ pub fn scene_plots(out: &Path, results: &SceneResults) -> Result<()> {
                 &halves[1],
                 &Axes {
                     title: &title_e,
-                    x: ("time (s)", log),
+                    x: ("CPU time (s)", log),
                     y: ("relative MSE", log),
                 },
                 &error,

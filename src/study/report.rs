@@ -34,7 +34,9 @@ pub struct Row {
     pub lab_error: f64,
     /// Median wall time of a run, seconds.
     pub time: f64,
-    /// 1 / (V[L_{N,α}] × time).
+    /// Median CPU time of a run (all threads), seconds: robust to other load on the machine.
+    pub cpu_time: f64,
+    /// 1 / (V[L_{N,α}] × CPU time).
     pub efficiency: f64,
     /// Mean luminance of the image, averaged over runs, and its standard error (with the
     /// reference's).
@@ -57,6 +59,7 @@ pub struct SweepPoint {
     pub sampling_variance: f64,
     pub estimator_variance: f64,
     pub time: f64,
+    pub cpu_time: f64,
 }
 
 impl SweepPoint {
@@ -70,6 +73,7 @@ impl SweepPoint {
             sampling_variance: m.sampling_variance,
             estimator_variance: m.runs.estimator_variance(),
             time: m.time,
+            cpu_time: m.cpu_time,
         }
     }
 }
@@ -174,7 +178,8 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<(
         "V[L₁]: sampling variance of the one-sample estimator (mean over pixels); V[L_N]: \
          variance of the image across runs (mean over pixels); rel. MSE and ΔE*ab (mean CIE76 \
          after gamma 2.2 and clamping, as the paper) against the reference; time: median wall \
-         time of a run; efficiency: 1 / (V[L_N] × time); z: the image's mean luminance against \
+         time of a run; CPU: its CPU time, all threads (other programs on the machine do not \
+         count in it); efficiency: 1 / (V[L_N] × CPU time); z: the image's mean luminance against \
          the reference's, in standard errors. Ratios are to the balance heuristic at the same \
          budget; *paper* columns are the paper's ratios for its scene of the same number \
          (Tables 1 and 2; its efficiency uses V[L₁]).\n"
@@ -306,16 +311,16 @@ fn scene_section(
         let heading = if budget == "equal samples" {
             format!("Equal samples (N = {})", config.samples)
         } else {
-            "Equal time (N chosen to match `alpha`'s time)".into()
+            "Equal time (N chosen to match `alpha`'s CPU time)".into()
         };
         writeln!(md, "### {heading}\n")?;
         writeln!(
             md,
-            "| integrator | N | V[L₁] | ratio | paper | median V[L₁] | V[L_N] | ratio | rel. MSE | ΔE*ab | ratio | paper | time (s) | efficiency | ratio | z |"
+            "| integrator | N | V[L₁] | ratio | paper | median V[L₁] | V[L_N] | ratio | rel. MSE | ΔE*ab | ratio | paper | time (s) | CPU (s) | efficiency | ratio | z |"
         )?;
         writeln!(
             md,
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
         )?;
         for row in rows {
             let of_balance = |f: fn(&Row) -> f64| b.map(|b| f(row) / f(b));
@@ -323,7 +328,7 @@ fn scene_section(
             let paper_lab = p.and_then(|p| p.lab_error.ratio(&row.kind, mode(row)));
             writeln!(
                 md,
-                "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} |",
+                "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} |",
                 row.integrator,
                 row.samples,
                 sig(row.sampling_variance),
@@ -345,6 +350,7 @@ fn scene_section(
                     "–".into()
                 },
                 sig(row.time),
+                sig(row.cpu_time),
                 sig(row.efficiency),
                 ratio(of_balance(|r| r.efficiency)),
                 row.z,
@@ -357,7 +363,7 @@ fn scene_section(
     for (file, caption) in [
         (
             format!("plots/{name}-time.png"),
-            "Variance and error against time (log-log): each integrator at equal samples and equal time",
+            "Variance and error against CPU time (log-log): each integrator at equal samples and equal time",
         ),
         (
             format!("panels/{name}.png"),
