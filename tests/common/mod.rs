@@ -70,14 +70,17 @@ pub fn example_library() -> &'static Path {
             .status()
             .expect("run cargo");
         assert!(status.success(), "building the example plugin failed");
-        // target/debug/deps/<this test> -> target/debug
+        // target/<profile>/deps/<this test> -> target/debug, where `--profile test` builds
+        // whatever profile the tests run in (`cargo test --release` too).
         let dir = std::env::current_exe()
             .unwrap()
             .parent()
             .unwrap()
             .parent()
             .unwrap()
-            .to_path_buf();
+            .parent()
+            .unwrap()
+            .join("debug");
         let file = format!(
             "{}lumis_oren_nayar{}",
             std::env::consts::DLL_PREFIX,
