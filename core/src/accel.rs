@@ -56,6 +56,18 @@ pub struct Intersection {
     pub primitive: u32,
 }
 
+/// The closest primitive a ray meets, as [`Geometry::first_hit`] finds it.
+#[derive(Clone, Copy, Debug)]
+pub struct FirstHit {
+    pub t: f32,
+    /// Index of the shape in the scene.
+    pub shape: u32,
+    /// The primitive's slot in the BVH's leaf order.
+    slot: u32,
+    /// Of a triangle; unused for spheres.
+    barycentrics: [f32; 3],
+}
+
 /// pbrt-v4's OffsetRayOrigin: a point just outside the error box of `p`, on the side of `n`
 /// that `w` points to.
 pub fn offset_ray_origin(p: Vec3, error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
@@ -337,6 +349,13 @@ impl Geometry {
 
     /// The closest intersection along the ray, if any.
     pub fn intersect(&self, ray: &Ray) -> Option<Intersection> {
+        self.first_hit(ray).map(|hit| self.surface(ray, &hit))
+    }
+
+    /// The closest primitive along the ray, without the surface's details: enough to tell which
+    /// shape it is (e.g. whether a BSDF ray reached the light it was drawn for) before paying
+    /// for the position, error bounds and normals with [`Geometry::surface`].
+    pub fn first_hit(&self, ray: &Ray) -> Option<FirstHit> {
         count_ray();
         if self.primitives.is_empty() {
             return None;
@@ -363,13 +382,26 @@ impl Geometry {
                     }
                 }
             });
-        if !found {
-            return None;
-        }
+        found.then(|| {
+            let slot = hit.primitive_id;
+            let shape = match self.primitives[slot as usize] {
+                Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => shape,
+            };
+            FirstHit {
+                t: hit.t,
+                slot,
+                shape,
+                barycentrics,
+            }
+        })
+    }
+
+    /// The intersection record of a hit [`Geometry::first_hit`] found along `ray`.
+    pub fn surface(&self, ray: &Ray, hit: &FirstHit) -> Intersection {
         let t = hit.t;
-        Some(match self.primitives[hit.primitive_id as usize] {
+        match self.primitives[hit.slot as usize] {
             Primitive::Triangle { p, shape, index } => {
-                let [b0, b1, b2] = barycentrics;
+                let [b0, b1, b2] = hit.barycentrics;
                 let position = b0 * p[0] + b1 * p[1] + b2 * p[2];
                 let error = gamma(7) * ((b0 * p[0]).abs() + (b1 * p[1]).abs() + (b2 * p[2]).abs());
                 let geometric_normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
@@ -412,7 +444,7 @@ impl Geometry {
                     primitive: 0,
                 }
             }
-        })
+        }
     }
 
     /// Whether anything blocks the ray before `t_max`.

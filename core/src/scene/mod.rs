@@ -6,7 +6,7 @@ pub mod load;
 pub mod overrides;
 pub mod shapes;
 
-use crate::accel::{Geometry, Intersection, Ray};
+use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
@@ -45,6 +45,11 @@ pub struct Scene {
 impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<Intersection> {
         self.geometry.intersect(ray)
+    }
+
+    /// The closest shape along the ray; [`Geometry::surface`] gives the rest when needed.
+    pub fn first_hit(&self, ray: &Ray) -> Option<FirstHit> {
+        self.geometry.first_hit(ray)
     }
 
     pub fn occluded(&self, ray: &Ray) -> bool {
