@@ -15,6 +15,12 @@ cornell="$lumis render scenes/cornell.ron --set integrator.type=power --set inte
 echo "Threads: Cornell box 256x256, power, samples 2, 64 spp (speed-up = first/this of 2 threads)"
 python3 benches/ab.py "$@" --label "1 thread" --label "2 threads" \
     "$cornell --threads 1" "$cornell --threads 2"
+# The wall-time speed-up needs two idle cores; the CPU time of the same runs does not, and tells
+# how much work the second thread adds (scheduling, contention): 2 / (this ratio) bounds the
+# speed-up an idle machine gives.
+echo "CPU time (whole process) of the same runs (ratio = extra work of 2 threads)"
+python3 benches/ab.py "$@" --cpu --label "1 thread" --label "2 threads" \
+    "$cornell --threads 1" "$cornell --threads 2"
 
 # The Veach layout as in the paper: one camera sample per pixel, N = 64 per light, no AOV.
 veach="$lumis render scenes/veach.ron --set integrator.aovs=[] --threads 2 -o $out/v.exr"
