@@ -12,7 +12,7 @@ if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"
 fi
 if ! "$venv/bin/python" -c 'import mitsuba, numpy' 2>/dev/null; then
-    "$venv/bin/pip" install --quiet mitsuba==3.9.1 drjit numpy
+    "$venv/bin/pip" install --quiet mitsuba==3.9.1 numpy
 fi
 
 # Dr.Jit's LLVM backend needs a recent libLLVM (15 miscompiles Mitsuba's kernels).

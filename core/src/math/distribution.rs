@@ -49,16 +49,19 @@ fn alias_table(pmf: &[f64]) -> Vec<AliasSlot> {
     }
     // What is left holds probability one up to rounding: it keeps its own bin, unless that bin
     // has none (rounding must never make a zero-weight bin reachable).
+    let donor = pmf.iter().position(|&p| p > 0.0).unwrap_or(0) as u32;
     for i in small.into_iter().chain(large) {
-        if pmf[i] > 0.0 {
-            slots[i].keep = 1.0;
+        slots[i] = if pmf[i] > 0.0 {
+            AliasSlot {
+                keep: 1.0,
+                alias: i as u32,
+            }
         } else {
-            let donor = pmf.iter().position(|&p| p > 0.0).unwrap_or(i);
-            slots[i] = AliasSlot {
+            AliasSlot {
                 keep: 0.0,
-                alias: donor as u32,
-            };
-        }
+                alias: donor,
+            }
+        };
     }
     slots
 }

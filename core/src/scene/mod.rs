@@ -68,6 +68,11 @@ impl Scene {
 
     /// Index of the area emitter of the shape that was hit, if it emits.
     pub fn emitter_of(&self, hit: &Intersection) -> Option<usize> {
-        self.shape_emitter[hit.shape as usize].map(|e| e as usize)
+        self.emitter_of_shape(hit.shape)
+    }
+
+    /// Index of the area emitter of shape `shape`, if it emits.
+    pub fn emitter_of_shape(&self, shape: u32) -> Option<usize> {
+        self.shape_emitter[shape as usize].map(|e| e as usize)
     }
 }

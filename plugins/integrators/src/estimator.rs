@@ -149,7 +149,7 @@ fn reaches_light(scene: &Scene, light: usize, ray: &Ray) -> Option<(Option<Emitt
     match scene.first_hit(ray) {
         None if scene.environment == Some(light) => Some((None, emitter.eval(ray.direction, None))),
         None => None,
-        Some(first) if scene.shape_emitter[first.shape as usize] == Some(light as u32) => {
+        Some(first) if scene.emitter_of_shape(first.shape) == Some(light) => {
             let hit = scene.geometry.surface(ray, &first);
             let h = EmitterHit {
                 position: hit.position,
