@@ -6,7 +6,7 @@ pub mod load;
 pub mod overrides;
 pub mod shapes;
 
-use crate::accel::{Geometry, Intersection, Ray};
+use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
@@ -50,6 +50,11 @@ impl Scene {
         self.geometry.intersect(ray)
     }
 
+    /// The closest shape along the ray; [`Geometry::surface`] gives the rest when needed.
+    pub fn first_hit(&self, ray: &Ray) -> Option<FirstHit> {
+        self.geometry.first_hit(ray)
+    }
+
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.geometry.occluded(ray)
     }
@@ -66,6 +71,11 @@ impl Scene {
 
     /// Index of the area emitter of the shape that was hit, if it emits.
     pub fn emitter_of(&self, hit: &Intersection) -> Option<usize> {
-        self.shape_emitter[hit.shape as usize].map(|e| e as usize)
+        self.emitter_of_shape(hit.shape)
+    }
+
+    /// Index of the area emitter of shape `shape`, if it emits.
+    pub fn emitter_of_shape(&self, shape: u32) -> Option<usize> {
+        self.shape_emitter[shape as usize].map(|e| e as usize)
     }
 }

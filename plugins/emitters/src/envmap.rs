@@ -103,6 +103,15 @@ impl EnvironmentMap {
         )
     }
 
+    /// Solid-angle density of the direction at map coordinates `uv`.
+    fn pdf_at(distribution: &Distribution2D, uv: Vec2, sin_theta: f32) -> f32 {
+        if sin_theta <= 0.0 {
+            return 0.0;
+        }
+        let pdf = distribution.pdf(uv) / (2.0 * PI * PI * sin_theta);
+        if pdf.is_finite() { pdf } else { 0.0 }
+    }
+
     fn lookup(&self, uv: Vec2) -> Rgb {
         let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
         let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
@@ -111,12 +120,14 @@ impl EnvironmentMap {
 }
 
 impl Emitter for EnvironmentMap {
-    fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let (uv, _) = self.distribution.as_ref()?.sample(u);
+    fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
+        let distribution = self.distribution.as_ref()?;
+        let (uv, _) = distribution.sample(u);
         let (wi, _) = self.to_direction(uv);
-        // Radiance and density are those of the direction as `eval` and `pdf_direction` see it:
-        // on a pixel's edge, rounding can move it into the neighbour.
-        let pdf = self.pdf_direction(reference, wi, None);
+        // Radiance and density are those of the direction as `eval` and `pdf_direction` see it
+        // (on a pixel's edge, rounding can move it into the neighbour), from one conversion.
+        let (uv, sin_theta) = self.to_uv(wi);
+        let pdf = Self::pdf_at(distribution, uv, sin_theta);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -124,7 +135,7 @@ impl Emitter for EnvironmentMap {
             wi,
             position: None,
             pdf,
-            radiance: self.eval(wi, None),
+            radiance: self.lookup(uv),
         })
     }
 
@@ -133,11 +144,7 @@ impl Emitter for EnvironmentMap {
             return 0.0;
         };
         let (uv, sin_theta) = self.to_uv(wi);
-        if sin_theta <= 0.0 {
-            return 0.0;
-        }
-        let pdf = d.pdf(uv) / (2.0 * PI * PI * sin_theta);
-        if pdf.is_finite() { pdf } else { 0.0 }
+        Self::pdf_at(d, uv, sin_theta)
     }
 
     fn eval(&self, wi: Vec3, _: Option<&EmitterHit>) -> Rgb {

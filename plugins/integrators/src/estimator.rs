@@ -145,10 +145,12 @@ impl Heuristic {
 /// environment) and the radiance arriving.
 fn reaches_light(scene: &Scene, light: usize, ray: &Ray) -> Option<(Option<EmitterHit>, Rgb)> {
     let emitter = scene.emitters[light].as_ref();
-    match scene.intersect(ray) {
+    // Most BSDF rays meet something other than this light: only its hits need the surface.
+    match scene.first_hit(ray) {
         None if scene.environment == Some(light) => Some((None, emitter.eval(ray.direction, None))),
         None => None,
-        Some(hit) if scene.emitter_of(&hit) == Some(light) => {
+        Some(first) if scene.emitter_of_shape(first.shape) == Some(light) => {
+            let hit = scene.geometry.surface(ray, &first);
             let h = EmitterHit {
                 position: hit.position,
                 normal: hit.geometric_normal,

@@ -1,0 +1,328 @@
+//! Micro-benchmarks of the hot paths: BVH construction, ray queries, BSDFs, environment map
+//! sampling and the per-sample cost of the adaptive-α statistics. Run with `cargo bench`
+//! (`cargo bench -- bvh` for one group); docs/performance.md lists the figures measured.
+
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use glam::{Vec2, Vec3};
+use lumis::accel::{Geometry, Ray};
+use lumis::bsdf::Bsdf;
+use lumis::emitter::{Emitter, ReferencePoint};
+use lumis::integrators::estimator::{
+    Heuristic, SampleSplit, ShadingPoint, camera_sample, estimate_light,
+};
+use lumis::sampler::Sampler;
+use lumis::scene::shapes::{Mesh, ShapeGeometry};
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Rays (or samples) per measured batch: large enough that loop overhead vanishes, small enough
+/// that a batch stays in cache.
+const BATCH: usize = 4096;
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// A 1000 × 500-quad height field (10⁶ triangles) with smooth bumps: a procedural stand-in for
+/// a large scanned mesh, with no degenerate triangles.
+fn height_field() -> Mesh {
+    let (nx, nz) = (1000u32, 500u32);
+    let mut mesh = Mesh::default();
+    for j in 0..=nz {
+        for i in 0..=nx {
+            let (x, z) = (i as f32 * 0.1, j as f32 * 0.1);
+            let y = (x * 0.7).sin() * (z * 1.3).cos() + 0.3 * (x * 3.1 + z * 2.3).sin();
+            mesh.positions.push(Vec3::new(x, y, z));
+        }
+    }
+    let row = nx + 1;
+    for j in 0..nz {
+        for i in 0..nx {
+            let a = j * row + i;
+            mesh.indices.push([a, a + row, a + 1]);
+            mesh.indices.push([a + 1, a + row, a + row + 1]);
+        }
+    }
+    mesh
+}
+
+fn load_mesh(path: &Path) -> Mesh {
+    lumis::scene::gltf::load(path, None).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// dragon_res2 lives in the shared data directory beside the repository, not in it.
+fn dragon_res2() -> Option<Mesh> {
+    let path = repo("../shared/data/meshes/dragon_res2.glb");
+    if path.exists() {
+        Some(load_mesh(&path))
+    } else {
+        println!(
+            "skipping dragon_res2: {} not found (it is in the shared data directory)",
+            path.display()
+        );
+        None
+    }
+}
+
+fn bvh_build(c: &mut Criterion) {
+    let mut group = c.benchmark_group("bvh_build");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    let mut meshes = vec![
+        (
+            "dragon_res3_48k",
+            load_mesh(&repo("scenes/meshes/dragon_res3.glb")),
+        ),
+        ("heightfield_1m", height_field()),
+    ];
+    if let Some(mesh) = dragon_res2() {
+        meshes.insert(1, ("dragon_res2_203k", mesh));
+    }
+    for (name, mesh) in meshes {
+        group.throughput(Throughput::Elements(mesh.indices.len() as u64));
+        group.bench_function(name, |b| {
+            b.iter_batched(
+                || vec![ShapeGeometry::Mesh(mesh.clone())],
+                |shapes| black_box(Geometry::new(shapes)),
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    group.finish();
+}
+
+/// Camera rays through a 64 × 64 grid looking at the dragon (coherent), and rays between random
+/// points of its bounding box (incoherent: random origins and directions, as secondary rays).
+fn ray_sets(mesh: &Mesh) -> [(&'static str, Vec<Ray>); 2] {
+    let (lo, hi) = mesh.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let (center, extent) = ((lo + hi) * 0.5, hi - lo);
+    let eye = center + Vec3::new(0.0, 0.0, 2.5 * extent.max_element());
+    let side = (BATCH as f32).sqrt() as usize;
+    let coherent = (0..BATCH)
+        .map(|i| {
+            let (x, y) = (
+                (i % side) as f32 / side as f32,
+                (i / side) as f32 / side as f32,
+            );
+            let target = center + Vec3::new((x - 0.5) * extent.x, (y - 0.5) * extent.y, 0.0);
+            Ray {
+                origin: eye,
+                direction: (target - eye).normalize(),
+                t_max: f32::INFINITY,
+            }
+        })
+        .collect();
+    let mut sampler = Sampler::new(7, 0, 0);
+    let mut point =
+        || lo + extent * Vec3::new(sampler.next_1d(), sampler.next_1d(), sampler.next_1d());
+    let incoherent = (0..BATCH)
+        .map(|_| {
+            let (origin, target) = (point(), point());
+            Ray {
+                origin,
+                direction: (target - origin).normalize(),
+                t_max: f32::INFINITY,
+            }
+        })
+        .collect();
+    [("coherent", coherent), ("incoherent", incoherent)]
+}
+
+fn ray_queries(c: &mut Criterion) {
+    let mesh = load_mesh(&repo("scenes/meshes/dragon_res3.glb"));
+    let sets = ray_sets(&mesh);
+    let geometry = Geometry::new(vec![ShapeGeometry::Mesh(mesh)]);
+    let mut group = c.benchmark_group("rays_dragon_res3");
+    group.throughput(Throughput::Elements(BATCH as u64));
+    for (name, rays) in &sets {
+        let hits = rays
+            .iter()
+            .filter(|r| geometry.intersect(r).is_some())
+            .count();
+        println!("{name}: {hits} of {BATCH} rays hit");
+        group.bench_function(format!("closest_hit_{name}"), |b| {
+            b.iter(|| {
+                for ray in rays {
+                    black_box(geometry.intersect(ray));
+                }
+            })
+        });
+        group.bench_function(format!("occlusion_{name}"), |b| {
+            b.iter(|| {
+                for ray in rays {
+                    black_box(geometry.occluded(ray));
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+/// A BSDF built through the registry, as a scene builds it.
+fn bsdf(spec: &str) -> Arc<dyn Bsdf> {
+    lumis::link_plugins();
+    let spec: lumis::scene::description::PluginSpec =
+        ron::from_str(spec).expect("valid plugin description");
+    let plugin =
+        lumis::registry::find::<lumis::registry::BsdfPlugin>(&spec.kind).expect("built-in BSDF");
+    let mut params = lumis::params::Params::new(spec.kind.clone(), plugin.params, spec.params)
+        .expect("valid parameters");
+    (plugin.create)(&mut params).expect("BSDF builds")
+}
+
+fn bsdfs(c: &mut Criterion) {
+    // The measured BSDF tabulates a rough glossy one in a MERL file.
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let merl = dir.path().join("glossy.binary");
+    let glossy = bsdf("(type: \"glossy\", roughness: 0.2, specular: 0.5, diffuse: 0.3)");
+    lumis::bsdfs::measured::write_merl(&merl, |wi, wo| glossy.eval(wo, wi) / wi.z)
+        .expect("MERL file written");
+    let models = [
+        ("diffuse", bsdf("(type: \"diffuse\", reflectance: 0.5)")),
+        ("glossy", glossy),
+        ("mirror", bsdf("(type: \"mirror\")")),
+        (
+            "measured",
+            bsdf(&format!(
+                "(type: \"measured\", file: {:?})",
+                merl.display().to_string()
+            )),
+        ),
+    ];
+    // Directions above the surface and random numbers, drawn once.
+    let mut sampler = Sampler::new(3, 0, 0);
+    let inputs: Vec<(Vec3, Vec3, f32, Vec2)> = (0..BATCH)
+        .map(|_| {
+            let mut hemisphere =
+                || lumis::math::warp::square_to_cosine_hemisphere(sampler.next_2d()).normalize();
+            let (wo, wi) = (hemisphere(), hemisphere());
+            (wo, wi, sampler.next_1d(), sampler.next_2d())
+        })
+        .collect();
+    let mut group = c.benchmark_group("bsdf");
+    group.throughput(Throughput::Elements(BATCH as u64));
+    for (name, model) in &models {
+        group.bench_function(format!("{name}_sample"), |b| {
+            b.iter(|| {
+                for &(wo, _, u_lobe, u) in &inputs {
+                    black_box(model.sample(wo, u_lobe, u));
+                }
+            })
+        });
+        group.bench_function(format!("{name}_eval"), |b| {
+            b.iter(|| {
+                for &(wo, wi, _, _) in &inputs {
+                    black_box(model.eval(wo, wi));
+                }
+            })
+        });
+        group.bench_function(format!("{name}_pdf"), |b| {
+            b.iter(|| {
+                for &(wo, wi, _, _) in &inputs {
+                    black_box(model.pdf(wo, wi));
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+fn envmap(c: &mut Criterion) {
+    let path = repo("scenes/envmaps/studio.exr");
+    let image = lumis::image_io::read_exr_rgb(&path).expect("studio.exr reads");
+    let map = lumis::emitters::envmap::EnvironmentMap::new(
+        image.width,
+        image.height,
+        image.pixels,
+        1.0,
+        0.0,
+    );
+    let reference = ReferencePoint {
+        position: Vec3::ZERO,
+    };
+    let mut sampler = Sampler::new(5, 0, 0);
+    let us: Vec<Vec2> = (0..BATCH).map(|_| sampler.next_2d()).collect();
+    let directions: Vec<Vec3> = us
+        .iter()
+        .map(|&u| lumis::math::warp::square_to_cosine_hemisphere(u).normalize())
+        .collect();
+    let mut group = c.benchmark_group("envmap_studio_1024x512");
+    group.throughput(Throughput::Elements(BATCH as u64));
+    group.bench_function("sample_direction", |b| {
+        b.iter(|| {
+            for &u in &us {
+                black_box(map.sample_direction(&reference, u));
+            }
+        })
+    });
+    group.bench_function("pdf_direction", |b| {
+        b.iter(|| {
+            for &d in &directions {
+                black_box(map.pdf_direction(&reference, d, None));
+            }
+        })
+    });
+    group.bench_function("eval", |b| {
+        b.iter(|| {
+            for &d in &directions {
+                black_box(map.eval(d, None));
+            }
+        })
+    });
+    group.finish();
+}
+
+/// The α statistics' cost per sample: the same balance estimate at a shading point of the Veach
+/// scene (a glossy plate, four sphere lights) with and without them.
+fn alpha_estimator(c: &mut Criterion) {
+    lumis::link_plugins();
+    let loaded =
+        lumis::scene::load_scene(&repo("scenes/veach.ron"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let scene = &loaded.scene;
+    // A pixel on the second plate, lit by every light.
+    let (_, ray) = camera_sample(scene, glam::UVec2::new(160, 150), 0);
+    let hit = scene.intersect(&ray).expect("the camera sees a plate");
+    let sp = ShadingPoint::new(scene, hit, -ray.direction);
+    let split = SampleSplit::new(0.5, 64);
+    let mut group = c.benchmark_group("alpha_estimator");
+    group.throughput(Throughput::Elements(
+        (split.total() as usize * scene.emitters.len()) as u64,
+    ));
+    for (name, alpha_terms) in [("balance", false), ("balance_with_alpha_terms", true)] {
+        group.bench_function(name, |b| {
+            let mut index = 0;
+            b.iter(|| {
+                index += 1;
+                let mut sampler = Sampler::new(0, 0, index);
+                for light in 0..scene.emitters.len() {
+                    black_box(estimate_light(
+                        scene,
+                        &sp,
+                        light,
+                        split,
+                        Heuristic::Balance,
+                        alpha_terms,
+                        &mut sampler,
+                    ));
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(
+    name = benches;
+    // Short runs: the whole suite takes about two minutes, and the batches are long enough that
+    // criterion's confidence intervals stay within a few percent.
+    config = Criterion::default()
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    targets = bvh_build, ray_queries, bsdfs, envmap, alpha_estimator
+);
+criterion_main!(benches);
