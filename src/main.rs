@@ -194,6 +194,12 @@ fn study(args: StudyArgs) -> Result<()> {
         out: args.out,
         report: args.report,
         notes: args.notes,
+        command: Some(
+            std::iter::once("lumis".to_string())
+                .chain(std::env::args().skip(1))
+                .collect::<Vec<_>>()
+                .join(" "),
+        ),
     };
     let bar = if args.quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()

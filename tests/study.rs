@@ -36,11 +36,13 @@ fn number(row: &HashMap<String, String>, key: &str) -> f64 {
 }
 
 const INTEGRATORS: [&str; 6] = ["bsdf", "light", "balance", "power", "max", "alpha"];
-/// Scenes (paths under `scenes/`, without `.ron`) where every technique sees its lights often
-/// enough at this budget for σ to be measured (see docs/study.md, "Heavy tails"): an area light,
-/// an environment map, area + point lights (paper scene 6), and an environment map with point and
-/// directional lights under complex visibility (paper scene 10).
-const SCENES: [&str; 4] = ["cornell", "envmap", "paper/06", "paper/10"];
+/// Scenes (paths under `scenes/`, without `.ron`) where every technique, BSDF sampling alone
+/// included, meets its lights often enough at this budget for σ to be measured (docs/study.md,
+/// "Heavy tails"): an area light, an environment map with a sun, and area + point lights (paper
+/// scene 6). Paper scene 10 is not one: at 48×32 and N = 32, BSDF samples through its pergola's
+/// slats reach a bright part of the sky too rarely (z = −4.2, and 0.6 at N = 256, where σ is 2.6
+/// times as large).
+const SCENES: [&str; 3] = ["cornell", "envmap", "paper/06"];
 
 /// The name a study gives a scene: its file stem.
 fn name(scene: &str) -> &str {
@@ -79,7 +81,7 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
         "--set",
         "sampler.spp=1",
         "--samples",
-        "8",
+        "32",
         "--runs",
         "3",
         "--reference-samples",
@@ -141,7 +143,7 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
         let z = number(row, "z");
         assert!(z.abs() < 3.0, "{what}: z = {z}");
         if row["budget"] == "equal samples" {
-            assert_eq!(number(row, "samples"), 8.0, "{what}");
+            assert_eq!(number(row, "samples"), 32.0, "{what}");
         }
     }
     let sweeps = read_csv(&out.join("sweeps.csv"));
@@ -152,11 +154,11 @@ fn reduced_study_has_complete_sane_tables_and_every_integrator_agrees_with_the_r
                 .filter(|p| p["scene"] == scene && p["sweep"] == sweep)
                 .count()
         };
-        // 8 clamp sizes; M in {2, 4, 6} (N/32 … 3N/4 of N = 8, at least 2); N in M·{1, 2, 4, 8} for
+        // 8 clamp sizes; M in {2, 4, 8, 16, 24} (N/32 … 3N/4 of N = 32, at least 2); N in M·{1, 2, 4, 8} for
         // α and balance.
         assert_eq!(
             (count("clamp"), count("m"), count("n")),
-            (8, 3, 8),
+            (8, 5, 8),
             "{scene}"
         );
     }

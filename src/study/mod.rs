@@ -174,6 +174,8 @@ pub struct StudyConfig {
     pub report: Option<PathBuf>,
     /// Markdown written by hand (a reading of the results) inserted after the summary.
     pub notes: Option<PathBuf>,
+    /// The command line that ran the study, quoted in the report so that it can be run again.
+    pub command: Option<String>,
 }
 
 impl StudyConfig {
@@ -195,8 +197,10 @@ const CLAMP_SIZES: [f64; 8] = [0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, 1.0];
 const ALPHA_SAMPLE_FRACTIONS: [f64; 6] = [1.0 / 32.0, 1.0 / 16.0, 0.125, 0.25, 0.5, 0.75];
 /// N as multiples of M in the Figures 3 and 4 sweep.
 const CONVERGENCE_MULTIPLES: [u32; 4] = [1, 2, 4, 8];
-/// Camera samples per pixel of a rendered reference.
-const REFERENCE_SPP: u32 = 16;
+/// Independent runs whose mean is a rendered reference: their spread gives each reference pixel's
+/// own variance (the AOV's V[L₁] would not: it is the mixture's, which can be far larger than
+/// the variance of the stratified estimator).
+const REFERENCE_RUNS: u32 = 16;
 
 /// What K runs of one configuration measured.
 struct Measurement {
@@ -246,6 +250,8 @@ pub struct SceneResults {
     pub name: String,
     pub width: u32,
     pub height: u32,
+    /// Camera samples per pixel of the runs.
+    pub spp: u32,
     pub reference: Reference,
     pub rows: Vec<Row>,
     pub sweeps: Vec<SweepPoint>,
@@ -349,6 +355,7 @@ impl Study<'_> {
             name: name.clone(),
             width: loaded.scene.window.width,
             height: loaded.scene.window.height,
+            spp: loaded.scene.spp,
             reference,
             rows: Vec::new(),
             sweeps: Vec::new(),
@@ -413,9 +420,17 @@ impl Study<'_> {
         let reference = &results.reference;
         let mean = m.runs.mean();
         let ref_mean = metrics::mean_luminance(&reference.pixels);
+        // The image mean's variance from the spread of the K runs, or from each pixel's own
+        // samples (V[L₁] / (N · spp) per pixel, from N · spp · K samples instead of K values), the
+        // larger: heavy tails make both underestimates, the second less often; for MIS it is an
+        // upper bound (the mixture's variance).
+        let pixels = (results.width * results.height) as f64;
+        let per_pixel_samples = (m.samples * results.spp * m.runs.runs()) as f64;
+        let from_samples = m.sampling_variance / (per_pixel_samples * pixels);
         let sigma = m
             .runs
             .mean_standard_error()
+            .max(from_samples.sqrt())
             .hypot(reference.mean_standard_error());
         let estimator_variance = m.runs.estimator_variance();
         let row = Row {
@@ -627,8 +642,8 @@ impl Study<'_> {
             }
             ReferenceSource::Samples(s) => *s,
         };
-        let per_camera_sample = samples.div_ceil(REFERENCE_SPP).max(2);
-        let total = per_camera_sample * REFERENCE_SPP;
+        let per_run = samples.div_ceil(REFERENCE_RUNS).max(2);
+        let total = per_run * REFERENCE_RUNS;
         let file = path.with_file_name(format!(
             "{name}.reference-{}x{}-{total}.exr",
             window.width, window.height
@@ -644,14 +659,39 @@ impl Study<'_> {
         self.bar.set_message(format!(
             "{name}: reference, {total} samples per light per pixel (balance)"
         ));
-        let spec = Choice::parse("balance")?.with(per_camera_sample, &[], &["sampling_variance"]);
+        let spec = Choice::parse("balance")?.with(per_run, &[], &[]);
         let mut integrator = build_integrator(&spec, base).map_err(anyhow::Error::msg)?;
-        let spp = std::mem::replace(&mut loaded.scene.spp, REFERENCE_SPP);
-        let seed = std::mem::replace(&mut loaded.scene.seed, self.config.seed + 1_000_003);
-        let rendered = self.render(&loaded.scene, integrator.as_mut());
+        let spp = std::mem::replace(&mut loaded.scene.spp, 1);
+        let mut sum = vec![glam::DVec3::ZERO; pixels];
+        let mut runs = RunStatistics::new(pixels);
+        let mut time = 0.0;
+        for k in 0..REFERENCE_RUNS {
+            loaded.scene.seed = self.config.seed + 1_000_003 + k as u64;
+            let rendered = self.render(&loaded.scene, integrator.as_mut());
+            let (film, wall, _) = match rendered {
+                Ok(r) => r,
+                Err(e) => {
+                    loaded.scene.spp = spp;
+                    return Err(e);
+                }
+            };
+            time += wall;
+            runs.add(&film.color);
+            for (s, c) in sum.iter_mut().zip(&film.color) {
+                *s += c.as_dvec3();
+            }
+        }
         loaded.scene.spp = spp;
-        loaded.scene.seed = seed;
-        let (film, time, _) = rendered?;
+        let scene = &loaded.scene;
+        let aov = lumis_core::integrator::Aov {
+            name: "reference_variance".into(),
+            channels: vec!["Y".into()],
+            preview: false,
+        };
+        let mut film = Film::new(scene.width, scene.height, window, vec![aov]);
+        let n = REFERENCE_RUNS as f64;
+        film.color = sum.iter().map(|s| (*s / n).as_vec3()).collect();
+        film.aov_data = runs.pixel_variances().map(|v| (v / n) as f32).collect();
         let metadata: Metadata = vec![
             ("scene".into(), path.display().to_string()),
             ("key".into(), key),
@@ -690,7 +730,9 @@ fn reference_key(path: &Path, overrides: &[String], samples: u32) -> Result<Stri
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read `{}`", path.display()))?;
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    (text, overrides, samples, env!("CARGO_PKG_VERSION")).hash(&mut hasher);
+    // "runs": the format of a reference made of independent runs (older caches are stale).
+    let format = "runs";
+    (text, overrides, samples, env!("CARGO_PKG_VERSION"), format).hash(&mut hasher);
     Ok(format!("{:016x}", hasher.finish()))
 }
 
@@ -712,10 +754,9 @@ fn read_reference(
             r.len()
         );
     }
-    let pixel_variance = match (channel("sampling_variance.Y"), samples) {
-        (Some(v), Some(n)) => Some(v.iter().map(|&v| v as f64 / n as f64).collect()),
-        _ => None,
-    };
+    // The variance of each reference pixel, as a rendered reference stores it.
+    let pixel_variance =
+        channel("reference_variance.Y").map(|v| v.iter().map(|&v| v as f64).collect());
     let time = image_io::read_exr_metadata(file)
         .ok()
         .and_then(|m| m.into_iter().find(|(k, _)| k == "time"))

@@ -159,6 +159,9 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<(
         .map(|p| p.display().to_string())
         .collect();
     writeln!(md, "# lumis study\n")?;
+    if let Some(command) = &config.command {
+        writeln!(md, "Made by `{command}`.\n")?;
+    }
     writeln!(
         md,
         "Scenes: {}. N = {} samples per light, K = {} runs (seeds {}–{}){}.\n",
