@@ -159,6 +159,14 @@ fn png(
     Ok(())
 }
 
+/// One chart in a PNG of its own, if there is anything to draw.
+fn one_chart(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
+    if series.is_empty() {
+        return Ok(());
+    }
+    png(path, (800, 520), |root| chart(root, axes, series))
+}
+
 /// `plots/NAME-time.png`: V[L_N] and relative MSE against time, each integrator a line through
 /// its equal-samples and equal-time points.
 pub fn scene_plots(out: &Path, results: &SceneResults) -> Result<()> {
@@ -260,35 +268,27 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
     let clamp = per_scene("clamp", &|s| {
         relative_to_best(points(s, "clamp", "alpha", |p| p.estimator_variance))
     });
-    if !clamp.is_empty() {
-        png(&plots.join("clamp.png"), (800, 520), |root| {
-            chart(
-                root,
-                &Axes {
-                    title: "Clamping α to [½ − s/2, ½ + s/2] (Figure 2)",
-                    x: ("interval size s (0: balance heuristic)", Scale::Linear),
-                    y: ("V[L_N] / best", Scale::Log),
-                },
-                &clamp,
-            )
-        })?;
-    }
+    one_chart(
+        &plots.join("clamp.png"),
+        &Axes {
+            title: "Clamping α to [½ − s/2, ½ + s/2] (Figure 2)",
+            x: ("interval size s (0: balance heuristic)", Scale::Linear),
+            y: ("V[L_N] / best", Scale::Log),
+        },
+        &clamp,
+    )?;
     let m = per_scene("m", &|s| {
         relative_to_best(points(s, "m", "alpha", |p| p.estimator_variance))
     });
-    if !m.is_empty() {
-        png(&plots.join("m.png"), (800, 520), |root| {
-            chart(
-                root,
-                &Axes {
-                    title: "Samples M that estimate α, N fixed (Figure 7)",
-                    x: ("M", Scale::Log),
-                    y: ("V[L_N] / best", Scale::Log),
-                },
-                &m,
-            )
-        })?;
-    }
+    one_chart(
+        &plots.join("m.png"),
+        &Axes {
+            title: "Samples M that estimate α, N fixed (Figure 7)",
+            x: ("M", Scale::Log),
+            y: ("V[L_N] / best", Scale::Log),
+        },
+        &m,
+    )?;
     // Figure 3: V[L₁] of integrated α (M fixed) over that of the preprocessed α of the table.
     let l1 = per_scene("n", &|s| {
         let preprocessed = s
@@ -302,17 +302,15 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
             .collect()
     });
     if l1.iter().any(|s| s.points.iter().any(|p| p.1.is_finite())) {
-        png(&plots.join("convergence-l1.png"), (800, 520), |root| {
-            chart(
-                root,
-                &Axes {
-                    title: "V[L₁] of integrated α with M fixed, over preprocessed α's (Figure 3)",
-                    x: ("N", Scale::Log),
-                    y: ("V[L₁] / V[L₁] preprocessed", Scale::Linear),
-                },
-                &l1,
-            )
-        })?;
+        one_chart(
+            &plots.join("convergence-l1.png"),
+            &Axes {
+                title: "V[L₁] of integrated α with M fixed, over preprocessed α's (Figure 3)",
+                x: ("N", Scale::Log),
+                y: ("V[L₁] / V[L₁] preprocessed", Scale::Linear),
+            },
+            &l1,
+        )?;
     }
     // Figure 4: V[L_N] of α and balance over α's at N = M, one small chart per scene.
     let with_n: Vec<&SceneResults> = scenes
