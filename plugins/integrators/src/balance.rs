@@ -7,7 +7,7 @@
 //!   docs/integrators.md).
 
 use crate::estimator::Heuristic;
-use crate::mis::{self, Strategy};
+use crate::mis;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -15,13 +15,7 @@ use lumis_core::registry::IntegratorPlugin;
 static PARAMS: &[ParamSpec] = &[mis::SAMPLES, mis::AOVS];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    Ok(Box::new(mis::create(
-        params,
-        Strategy::Fixed {
-            alpha: 0.5,
-            heuristic: Heuristic::Balance,
-        },
-    )?))
+    mis::create_fixed(params, 0.5, Heuristic::Balance)
 }
 
 inventory::submit! {

@@ -80,6 +80,19 @@ pub fn create(params: &mut Params, strategy: Strategy) -> Result<MisIntegrator, 
     })
 }
 
+/// `create` of the plugins with a fixed split and weighting (`bsdf`, `light`, `balance`, `power`,
+/// `max`).
+pub fn create_fixed(
+    params: &mut Params,
+    alpha: f64,
+    heuristic: Heuristic,
+) -> Result<Box<dyn Integrator>, PluginError> {
+    Ok(Box::new(create(
+        params,
+        Strategy::Fixed { alpha, heuristic },
+    )?))
+}
+
 /// The supplemental's §5.1 colouring: red = light sampling, green = BSDF sampling, yellow = ½.
 pub fn alpha_color(alpha: f64) -> [f32; 3] {
     let m = alpha.max(1.0 - alpha);
@@ -223,12 +236,34 @@ impl Integrator for MisIntegrator {
     }
 
     fn render_pixel(&self, scene: &Scene, pixel: UVec2, out: &mut PixelOutput<'_>) {
-        // Statistics only when an AOV asks for them: nothing is allocated otherwise.
-        let mut stats = if self.any_aov() {
-            vec![LightStats::default(); scene.emitters.len()]
-        } else {
-            Vec::new()
-        };
+        // Statistics only when an AOV asks for them, in a buffer each thread reuses: no
+        // allocation per pixel (with one camera sample a pixel, per sample).
+        if !self.any_aov() {
+            return self.shade_pixel(scene, pixel, out, &mut []);
+        }
+        PIXEL_STATS.with_borrow_mut(|stats| {
+            stats.clear();
+            stats.resize(scene.emitters.len(), LightStats::default());
+            self.shade_pixel(scene, pixel, out, stats);
+        });
+    }
+}
+
+thread_local! {
+    static PIXEL_STATS: std::cell::RefCell<Vec<LightStats>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl MisIntegrator {
+    /// Renders one pixel; `stats` (one entry per light, or empty when no AOV is asked for)
+    /// gathers what the AOVs report.
+    fn shade_pixel(
+        &self,
+        scene: &Scene,
+        pixel: UVec2,
+        out: &mut PixelOutput<'_>,
+        stats: &mut [LightStats],
+    ) {
         let (mut bsdf_samples, mut light_samples) = (0u64, 0u64);
         let mut total = glam::DVec3::ZERO;
         for s in 0..scene.spp {
@@ -272,25 +307,25 @@ impl Integrator for MisIntegrator {
             }
         };
         if self.aovs.alpha {
-            let lights: Vec<usize> = area_lights(scene).collect();
             let alpha_of = |j: usize| {
                 let st = &stats[j];
                 (st.shaded > 0).then(|| st.alpha_sum / st.shaded as f64)
             };
             // Combined: weighted by each light's contribution (a plain mean if all are black).
-            let weight: f64 = lights.iter().map(|&j| stats[j].contribution).sum();
+            let weight: f64 = area_lights(scene).map(|j| stats[j].contribution).sum();
             let combined = if weight > 0.0 {
-                lights
-                    .iter()
-                    .filter_map(|&j| alpha_of(j).map(|a| a * stats[j].contribution))
+                area_lights(scene)
+                    .filter_map(|j| alpha_of(j).map(|a| a * stats[j].contribution))
                     .sum::<f64>()
                     / weight
             } else {
-                let shaded: Vec<f64> = lights.iter().filter_map(|&j| alpha_of(j)).collect();
-                if shaded.is_empty() {
+                let (sum, count) = area_lights(scene)
+                    .filter_map(alpha_of)
+                    .fold((0.0, 0u32), |(s, n), a| (s + a, n + 1));
+                if count == 0 {
                     f64::NAN
                 } else {
-                    shaded.iter().sum::<f64>() / shaded.len() as f64
+                    sum / count as f64
                 }
             };
             // Pixels with no shading point (background) get α = ½ and black colours.
@@ -299,14 +334,14 @@ impl Integrator for MisIntegrator {
             } else {
                 combined as f32
             });
-            for &j in &lights {
+            for j in area_lights(scene) {
                 put(alpha_of(j).unwrap_or(0.5) as f32);
             }
             let color = |a: f64| if a.is_nan() { [0.0; 3] } else { alpha_color(a) };
             for c in color(combined) {
                 put(c);
             }
-            for &j in &lights {
+            for j in area_lights(scene) {
                 for c in color(alpha_of(j).unwrap_or(f64::NAN)) {
                     put(c);
                 }
