@@ -250,8 +250,6 @@ pub struct SceneResults {
     pub name: String,
     pub width: u32,
     pub height: u32,
-    /// Camera samples per pixel of the runs.
-    pub spp: u32,
     pub reference: Reference,
     pub rows: Vec<Row>,
     pub sweeps: Vec<SweepPoint>,
@@ -355,7 +353,6 @@ impl Study<'_> {
             name: name.clone(),
             width: loaded.scene.window.width,
             height: loaded.scene.window.height,
-            spp: loaded.scene.spp,
             reference,
             rows: Vec::new(),
             sweeps: Vec::new(),
@@ -420,17 +417,11 @@ impl Study<'_> {
         let reference = &results.reference;
         let mean = m.runs.mean();
         let ref_mean = metrics::mean_luminance(&reference.pixels);
-        // The image mean's variance from the spread of the K runs, or from each pixel's own
-        // samples (V[L₁] / (N · spp) per pixel, from N · spp · K samples instead of K values), the
-        // larger: heavy tails make both underestimates, the second less often; for MIS it is an
-        // upper bound (the mixture's variance).
-        let pixels = (results.width * results.height) as f64;
-        let per_pixel_samples = (m.samples * results.spp * m.runs.runs()) as f64;
-        let from_samples = m.sampling_variance / (per_pixel_samples * pixels);
+        // Pixels are independent estimates: the image mean's variance is the sum of the pixels'
+        // (from the spread of the K runs) over P², plus the reference's own.
         let sigma = m
             .runs
             .mean_standard_error()
-            .max(from_samples.sqrt())
             .hypot(reference.mean_standard_error());
         let estimator_variance = m.runs.estimator_variance();
         let row = Row {
