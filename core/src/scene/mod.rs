@@ -1,10 +1,13 @@
 //! Scenes: the RON description, how it is built into renderable form, and the built scene.
 
+pub mod budget;
 pub mod description;
 pub mod gltf;
+pub mod light_check;
 pub mod load;
 pub mod overrides;
 pub mod shapes;
+pub mod syntax;
 
 use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
