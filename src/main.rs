@@ -389,11 +389,11 @@ fn render(args: RenderArgs) -> Result<()> {
 
     if stats.partial() {
         eprintln!(
-            "interrupted by {}: wrote a partial image ({} of {} tiles) to {}",
-            interrupt::signal_name(),
+            "interrupted: wrote a partial image ({} of {} tiles) to {} after {}",
             stats.tiles_done,
             stats.tiles_total,
-            exr_path.display()
+            exr_path.display(),
+            interrupt::signal_name()
         );
         std::process::exit(interrupt::exit_code());
     }

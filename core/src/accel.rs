@@ -9,10 +9,10 @@ use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use crate::math::{gamma, next_float_down, next_float_up};
 use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal};
 use glam::{Vec3, Vec3A};
+use obvhs::Boundable;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray as BvhRay, RayHit};
-use obvhs::Boundable;
 use std::cell::Cell;
 
 thread_local! {
@@ -287,8 +287,7 @@ fn intersect_sphere(ray: &Ray, t_max: f32, s: &Sphere) -> Option<f32> {
 
 /// "(x, y, z)" for messages.
 fn fmt_point(p: Vec3) -> String {
-    let [x, y, z] = p.to_array().map(fmt_f32);
-    format!("({x}, {y}, {z})")
+    crate::limits::fmt_f32s(&p.to_array())
 }
 
 /// Checks that a shape (in world space) lies where the BVH and the intersection arithmetic stay
@@ -366,11 +365,7 @@ pub fn check_coordinates(shape: &ShapeGeometry) -> Result<(), String> {
                     fmt_point(*p)
                 ));
             }
-            if let Some(p) = mesh
-                .positions
-                .iter()
-                .find(|p| p.abs().max_element() > max)
-            {
+            if let Some(p) = mesh.positions.iter().find(|p| p.abs().max_element() > max) {
                 return Err(format!(
                     "a vertex is at {} after the transform, beyond the supported ±{} (reduce `scale` or `translate`, or choose a larger unit)",
                     fmt_point(*p),

@@ -162,9 +162,8 @@ fn sah_split(range: &mut [u32], aabbs: &[Aabb], centroids: &[[f32; 3]]) -> Optio
             continue;
         }
         let scale = BINS as f32 / extent;
-        let bin_of = |i: u32| {
-            (((centroids[i as usize][axis] - lo[axis]) * scale) as usize).min(BINS - 1)
-        };
+        let bin_of =
+            |i: u32| (((centroids[i as usize][axis] - lo[axis]) * scale) as usize).min(BINS - 1);
         let mut counts = [0usize; BINS];
         let mut boxes = [Aabb::empty(); BINS];
         for &i in range.iter() {
@@ -258,7 +257,11 @@ mod tests {
             assert!(depth(&bvh) < TRAVERSAL_STACK_SIZE, "{n}: {}", depth(&bvh));
             assert_eq!(bvh.primitive_indices.len(), n);
             // Generous for a loaded test machine: the build takes about 0.05 s.
-            assert!(start.elapsed().as_secs_f64() < 5.0, "{n}: {:?}", start.elapsed());
+            assert!(
+                start.elapsed().as_secs_f64() < 5.0,
+                "{n}: {:?}",
+                start.elapsed()
+            );
         }
     }
 

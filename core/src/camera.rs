@@ -35,14 +35,14 @@ impl Camera {
         for (name, v) in [("position", position), ("target", target), ("up", up)] {
             if !v.is_finite() {
                 return Err(format!(
-                    "camera `{name}` must be finite, found {:?}",
-                    v.to_array()
+                    "camera `{name}` must be finite, found {}",
+                    crate::limits::fmt_f32s(&v.to_array())
                 ));
             }
             if v.abs().max_element() > max {
                 return Err(format!(
-                    "camera `{name}` {:?} is beyond the supported coordinates, ±{}",
-                    v.to_array(),
+                    "camera `{name}` {} is beyond the supported coordinates, ±{}",
+                    crate::limits::fmt_f32s(&v.to_array()),
                     crate::limits::fmt_f32(max)
                 ));
             }

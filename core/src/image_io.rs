@@ -114,10 +114,7 @@ pub fn write_all_atomically(files: Vec<(&Path, FileWriter<'_>)>) -> Result<(), O
     Ok(())
 }
 
-fn write_temporary(
-    tmp: &mut tempfile::NamedTempFile,
-    write: FileWriter<'_>,
-) -> Result<(), String> {
+fn write_temporary(tmp: &mut tempfile::NamedTempFile, write: FileWriter<'_>) -> Result<(), String> {
     // The temporary file is private (0600); the output should be as readable as any file.
     #[cfg(unix)]
     {
@@ -284,8 +281,7 @@ pub fn write_aov_png(film: &Film, aov: usize, path: &Path) -> Result<(), OutputE
 pub fn aov_png_writer(film: &Film, aov: usize) -> FileWriter<'_> {
     Box::new(move |file| {
         let (w, h) = (film.window.width, film.window.height);
-        let channels: Vec<Vec<f32>> =
-            (0..3).map(|c| film.aov_channel(aov, c).collect()).collect();
+        let channels: Vec<Vec<f32>> = (0..3).map(|c| film.aov_channel(aov, c).collect()).collect();
         let bytes: Vec<u8> = (0..(w as usize * h as usize))
             .flat_map(|i| channels.iter().map(move |ch| ch[i]))
             .map(|v| {
@@ -316,12 +312,12 @@ pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
     let bytes = std::fs::read(path).map_err(|e| exr_error(path, exr::error::Error::Io(e)))?;
     let image = decode_exr_rgb(&bytes).map_err(|e| exr_error(path, e))?;
     let max = crate::limits::MAX_EMISSION;
-    if let Some((i, c)) = image
-        .pixels
-        .iter()
-        .enumerate()
-        .find_map(|(i, p)| p.to_array().into_iter().find(|&c| c.is_finite() && c > max).map(|c| (i, c)))
-    {
+    if let Some((i, c)) = image.pixels.iter().enumerate().find_map(|(i, p)| {
+        p.to_array()
+            .into_iter()
+            .find(|&c| c.is_finite() && c > max)
+            .map(|c| (i, c))
+    }) {
         return Err(format!(
             "`{}`: pixel ({}, {}) holds {}, above the largest radiance lumis accepts, {}",
             path.display(),
@@ -343,9 +339,12 @@ pub const MAX_EXR_PIXELS: usize = 1 << 27;
 pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)?;
     let has_rgb = |h: &exr::meta::header::Header| {
-        ["R", "G", "B"]
-            .iter()
-            .all(|name| h.channels.list.iter().any(|c| c.name.eq_case_insensitive(name)))
+        ["R", "G", "B"].iter().all(|name| {
+            h.channels
+                .list
+                .iter()
+                .any(|c| c.name.eq_case_insensitive(name))
+        })
     };
     if !meta.headers.iter().any(has_rgb) {
         let found: Vec<String> = meta
@@ -353,14 +352,16 @@ pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
             .iter()
             .flat_map(|h| h.channels.list.iter().map(|c| c.name.to_string()))
             .collect();
-        return Err(exr::error::Error::NotSupported(std::borrow::Cow::Owned(format!(
-            "an RGB image needs channels R, G and B; this one has {}",
-            if found.is_empty() {
-                "none".to_string()
-            } else {
-                found.join(", ")
-            }
-        ))));
+        return Err(exr::error::Error::NotSupported(std::borrow::Cow::Owned(
+            format!(
+                "an RGB image needs channels R, G and B; this one has {}",
+                if found.is_empty() {
+                    "none".to_string()
+                } else {
+                    found.join(", ")
+                }
+            ),
+        )));
     }
     for header in &meta.headers {
         let size = header.layer_size;

@@ -33,7 +33,7 @@ pub const MAX_FILM_SIDE: u32 = 1 << 16;
 /// Formats a number for messages: plain when moderate, in scientific notation when huge or tiny.
 pub fn fmt_number(v: f64) -> String {
     let a = v.abs();
-    if v.is_finite() && a != 0.0 && !(1e-4..1e16).contains(&a) {
+    if v.is_finite() && a != 0.0 && !(1e-4..1e6).contains(&a) {
         format!("{v:e}")
     } else {
         format!("{v}")
@@ -43,11 +43,17 @@ pub fn fmt_number(v: f64) -> String {
 /// As [`fmt_number`], with the shortest digits that identify an f32 (1e12, not 999999995904).
 pub fn fmt_f32(v: f32) -> String {
     let a = v.abs();
-    if v.is_finite() && a != 0.0 && !(1e-4..1e7).contains(&a) {
+    if v.is_finite() && a != 0.0 && !(1e-4..1e6).contains(&a) {
         format!("{v:e}")
     } else {
         format!("{v}")
     }
+}
+
+/// "(x, y, z)", each as [`fmt_f32`] writes it.
+pub fn fmt_f32s(values: &[f32]) -> String {
+    let items: Vec<String> = values.iter().map(|&v| fmt_f32(v)).collect();
+    format!("({})", items.join(", "))
 }
 
 /// Formats a byte count as "51.5 GB" (decimal units, as `free -h` does not but disks do; the
@@ -83,7 +89,11 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
         "MIB" => 1024f64.powi(2),
         "GIB" => 1024f64.powi(3),
         "TIB" => 1024f64.powi(4),
-        _ => return Err(format!("`{text}`: unknown unit `{unit}` (use K, M, G or T)")),
+        _ => {
+            return Err(format!(
+                "`{text}`: unknown unit `{unit}` (use K, M, G or T)"
+            ));
+        }
     };
     let value: f64 = number
         .parse()

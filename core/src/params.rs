@@ -127,10 +127,7 @@ impl ParamSpec {
                 format!("[0, {}] per channel", number(max))
             }
             ParamKind::Rgb { .. } => "finite, non-negative per channel".into(),
-            ParamKind::Vec3 { .. } => format!(
-                "each component in [-{0}, {0}]",
-                number(MAX_COORDINATE)
-            ),
+            ParamKind::Vec3 { .. } => format!("[-{0}, {0}] per component", number(MAX_COORDINATE)),
             ParamKind::Choice { options, .. } => options.join(" | "),
             ParamKind::List { options } => format!("any of {}", options.join(", ")),
             _ => String::new(),
@@ -225,12 +222,19 @@ fn as_triple(v: &Value) -> Option<[f64; 3]> {
     }
 }
 
+/// Whether `v`, as written (f64), is in [min, max] once it is an f32: `1e12` is accepted for a
+/// maximum of 1e12 (which rounds to 999 999 995 904 in f32), and `1e39` refused (not as an f32
+/// infinity). False for NaN.
+fn in_range(v: f64, min: f32, max: f32) -> bool {
+    let x = v as f32;
+    x.is_finite() && x >= min && x <= max
+}
+
 /// "(1, NaN, 3)", each number as [`fmt_number`] writes it.
 fn fmt_numbers(values: &[f64]) -> String {
     let items: Vec<String> = values.iter().map(|&v| fmt_number(v)).collect();
     format!("({})", items.join(", "))
 }
-
 
 impl Params {
     /// Checks every given name against the plugin's declared parameters.
@@ -360,8 +364,7 @@ impl Params {
             None => default.ok_or_else(|| self.missing(spec, "a number"))? as f64,
             Some(v) => as_number(v).ok_or_else(|| self.wrong_type(name, "a number", v))?,
         };
-        // Compared in f64, so that a value beyond f32's range is not first rounded to infinity.
-        if !(v.is_finite() && v >= min as f64 && v <= max as f64 && (v as f32).is_finite()) {
+        if !in_range(v, min, max) {
             return Err(self.bad_number(spec, &[v]));
         }
         Ok(v as f32)
@@ -425,10 +428,7 @@ impl Params {
                 _ => return Err(self.wrong_type(name, EXPECTED, v)),
             },
         };
-        if c
-            .iter()
-            .any(|&x| !(x.is_finite() && x >= 0.0 && x <= max as f64 && (x as f32).is_finite()))
-        {
+        if c.iter().any(|&x| !in_range(x, 0.0, max)) {
             return Err(self.bad_number(spec, &c));
         }
         Ok(Vec3::from(c.map(|x| x as f32)))
@@ -450,7 +450,7 @@ impl Params {
         };
         if v
             .iter()
-            .any(|x| !(x.is_finite() && x.abs() <= MAX_COORDINATE as f64))
+            .any(|&x| !in_range(x, -MAX_COORDINATE, MAX_COORDINATE))
         {
             return Err(self.bad_number(spec, &v));
         }
@@ -472,8 +472,7 @@ impl Params {
             },
             Some(v) => return Err(self.wrong_type(name, "an interval (lo, hi)", v)),
         };
-        let inside = |x: f64| x >= min as f64 && x <= max as f64;
-        if !(inside(v[0]) && inside(v[1])) {
+        if !(in_range(v[0], min, max) && in_range(v[1], min, max)) {
             return Err(self.bad_number(spec, &v));
         }
         if v[0] > v[1] {
@@ -678,6 +677,91 @@ mod tests {
         let mut p = params(r#"{"reflectance": (1, 1.5, 0)}"#).unwrap();
         let e = p.rgb("reflectance").unwrap_err().to_string();
         assert!(e.contains("must be in [0, 1] per channel"), "{e}");
+    }
+
+    static MORE: &[ParamSpec] = &[
+        ParamSpec {
+            name: "clamp",
+            kind: ParamKind::Interval {
+                default: [0.0, 1.0],
+                min: 0.0,
+                max: 1.0,
+            },
+            unit: "",
+            description: "bounds",
+        },
+        ParamSpec {
+            name: "position",
+            kind: ParamKind::Vec3 { default: None },
+            unit: "",
+            description: "where",
+        },
+        ParamSpec {
+            name: "count",
+            kind: ParamKind::Int {
+                default: Some(1),
+                min: 1,
+                max: 1 << 20,
+            },
+            unit: "",
+            description: "how many",
+        },
+    ];
+
+    fn more(text: &str) -> Params {
+        Params::new("integrator `t`", MORE, ron::from_str(text).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn messages_name_the_real_fault() {
+        // A huge integer is reported as written, not saturated to i64::MAX.
+        let e = more(r#"{"count": 1e23}"#)
+            .int("count")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must be in [1, 1048576], found 1e23"), "{e}");
+        let e = more(r#"{"count": 2.5}"#)
+            .int("count")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("expects an integer"), "{e}");
+        // A reversed interval says so, not that it is out of [0, 1].
+        let e = more(r#"{"clamp": (0.9, 0.1)}"#)
+            .interval("clamp")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("reversed interval (0.9, 0.1)"), "{e}");
+        let e = more(r#"{"clamp": (NaN, 0.1)}"#)
+            .interval("clamp")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`clamp`") && e.contains("must be finite"), "{e}");
+        // Vectors have a range in their message, and NaN is named.
+        let e = more(r#"{"position": (NaN, 0, 0)}"#)
+            .vec3("position")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`position`")
+                && e.contains("(NaN, 0, 0)")
+                && e.contains("[-1e12, 1e12] per"),
+            "{e}"
+        );
+        let e = more(r#"{"position": (0, 2e12, 0)}"#)
+            .vec3("position")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must be in [-1e12, 1e12] per component"), "{e}");
+        // A float beyond f32 is reported as written, not as inf.
+        let mut p = params(r#"{"roughness": 1e39}"#).unwrap();
+        let e = p.float("roughness").unwrap_err().to_string();
+        assert!(e.contains("found 1e39"), "{e}");
+        let mut p = params(r#"{"reflectance": (NaN, 0, 0)}"#).unwrap();
+        let e = p.rgb("reflectance").unwrap_err().to_string();
+        assert!(
+            e.contains("`reflectance`") && e.contains("must be finite"),
+            "{e}"
+        );
     }
 
     #[test]

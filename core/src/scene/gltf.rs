@@ -100,25 +100,26 @@ fn invalid_gltf(e: gltf::Error) -> String {
     let shown: Vec<String> = problems
         .iter()
         .take(SHOWN)
-        .map(|(path, problem)| {
-            // Numbers beyond f32 (1e39) or not numbers at all read as absent.
-            let hint = match (problem, path.to_string()) {
-                (gltf::json::validation::Error::Missing, p) if p.ends_with("min") || p.ends_with("max") => {
-                    " (accessor bounds must be finite numbers within f32's range)"
-                }
-                _ => "",
-            };
-            format!("`{path}`: {problem}{hint}")
-        })
+        .map(|(path, problem)| format!("`{path}`: {problem}"))
         .collect();
     let more = problems.len().saturating_sub(SHOWN);
+    // Exporters write infinite bounds as null (JavaScript) or leave them out.
+    let bounds = problems.iter().any(|(path, _)| {
+        let path = path.to_string();
+        path.ends_with(".min") || path.ends_with(".max")
+    });
     format!(
-        "not a valid glTF file: {}{}",
+        "not a valid glTF file: {}{}{}",
         shown.join("; "),
         if more > 0 {
-            format!(" (and {more} more problems)")
+            format!(" (and {more} more)")
         } else {
             String::new()
+        },
+        if bounds {
+            "; POSITION bounds must be present and finite: are the positions infinite?"
+        } else {
+            ""
         }
     )
 }
@@ -128,8 +129,13 @@ fn invalid_gltf(e: gltf::Error) -> String {
 /// that climb out of the folder are refused, so that a model cannot read `/etc/passwd` or
 /// `../../secret` as a buffer. Percent escapes are decoded first (`%2e%2e` is `..`).
 fn buffer_path(base: &Path, uri: &str) -> Result<std::path::PathBuf, String> {
-    let decoded = percent_decode(uri).ok_or_else(|| format!("buffer URI `{uri}` has an invalid percent escape"))?;
-    let refuse = |why: &str| Err(format!("buffer URI `{uri}` {why}: only relative paths inside the model's folder and data: URIs are read"));
+    let decoded = percent_decode(uri)
+        .ok_or_else(|| format!("buffer URI `{uri}` has an invalid percent escape"))?;
+    let refuse = |why: &str| {
+        Err(format!(
+            "buffer URI `{uri}` {why}: only relative paths inside the model's folder and data: URIs are read"
+        ))
+    };
     if decoded.contains('\0') {
         return refuse("contains a NUL character");
     }

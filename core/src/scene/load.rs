@@ -49,7 +49,8 @@ pub fn parse_description(
     overrides: &[String],
 ) -> Result<SceneDescription, SceneError> {
     // Parse the text as written first, so that its errors carry line and column.
-    let description: SceneDescription = ron::from_str(text).map_err(|e| syntax_error(path, text, e))?;
+    let description: SceneDescription =
+        ron::from_str(text).map_err(|e| syntax_error(path, text, e))?;
     if overrides.is_empty() {
         return Ok(description);
     }
@@ -384,8 +385,8 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
             let center = Vec3::from(shape.center.unwrap_or([0.0; 3]));
             if !center.is_finite() {
                 return Err(scene_err(format!(
-                    "sphere `center` must be finite, found {:?}",
-                    center.to_array()
+                    "sphere `center` must be finite, found {}",
+                    crate::limits::fmt_f32s(&center.to_array())
                 )));
             }
             if !(radius > 0.0 && radius.is_finite()) {

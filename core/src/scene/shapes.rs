@@ -1,7 +1,6 @@
 //! Shape geometry: triangle meshes (built-in or from glTF) and analytic spheres, in world space.
 
 use super::description::TransformDescription;
-use crate::limits::fmt_f32;
 use glam::{DMat3, DVec3, Mat4, Vec3};
 use std::f32::consts::TAU;
 
@@ -208,10 +207,9 @@ fn finite(field: &str, values: &[f32]) -> Result<(), String> {
     if values.iter().all(|v| v.is_finite()) {
         return Ok(());
     }
-    let items: Vec<String> = values.iter().map(|&v| fmt_f32(v)).collect();
     Err(format!(
-        "transform `{field}` must be finite, found ({})",
-        items.join(", ")
+        "transform `{field}` must be finite, found {}",
+        crate::limits::fmt_f32s(values)
     ))
 }
 
@@ -247,10 +245,9 @@ pub fn transform_matrix(t: &TransformDescription) -> Result<Mat4, String> {
         }
         let last_row = &matrix[12..16];
         if last_row != [0.0, 0.0, 0.0, 1.0] {
-            let items: Vec<String> = last_row.iter().map(|&v| fmt_f32(v)).collect();
             return Err(format!(
-                "the last row of `matrix` must be (0, 0, 0, 1), found ({}): projective transforms are not supported",
-                items.join(", ")
+                "the last row of `matrix` must be (0, 0, 0, 1), found {}: projective transforms are not supported",
+                crate::limits::fmt_f32s(last_row)
             ));
         }
         Mat4::from_cols_array(&matrix).transpose()

@@ -232,7 +232,10 @@ mod tests {
         let (_, _, m) = message("(width: 64e3)");
         assert_eq!(m, "`width` must be a whole number, found `64e3`");
         let (_, _, m) = message("(width: -5)");
-        assert_eq!(m, "`width` must be a whole number in 0..=4294967295, found `-5`");
+        assert_eq!(
+            m,
+            "`width` must be a whole number in 0..=4294967295, found `-5`"
+        );
         let (_, _, m) = message("(width: 1, seed: 99999999999999999999999)");
         assert!(m.contains("`seed` must be a whole number in 0..=18446744073709551615"));
         let (_, _, m) = message("(width: \"big\")");
