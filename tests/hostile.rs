@@ -147,7 +147,10 @@ fn run(case: &Case) -> Result<(), String> {
                 .iter()
                 .find(|(_, values)| values.iter().any(|v| !v.is_finite()))
             {
-                return say(format!("channel {name} of {} is not finite", path.display()));
+                return say(format!(
+                    "channel {name} of {} is not finite",
+                    path.display()
+                ));
             }
         }
         if path.to_string_lossy().ends_with(".tmp") {

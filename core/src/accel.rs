@@ -388,6 +388,26 @@ pub struct Geometry {
     /// Primitives in BVH leaf order.
     primitives: Vec<Primitive>,
     bvh: CwBvh,
+    /// The power of two the BVH's space is scaled by (see [`bvh_scale`]).
+    bvh_scale: f32,
+}
+
+/// Size (largest extent) the scene has in the BVH's space, a power of two.
+const BVH_SCENE_SIZE_LOG2: i32 = 10;
+
+/// The power of two that scales a scene whose boxes span `total` to about 2^10 in the BVH's
+/// space. obvhs skips every node a ray leaves before t = 1e-4 (an absolute constant in its
+/// node test): unscaled, a scene 1e-5 across was invisible, and in any scene an occluder within
+/// 1e-4 units of a shading point was missed. Scaled, the skipped distance is about 1e-7 of the
+/// scene's size whatever its units, below the rounding error of its coordinates. A power of two
+/// scales coordinates exactly.
+fn bvh_scale(total: &Aabb) -> f32 {
+    let extent = (total.max - total.min).max_element();
+    if !(extent > 0.0 && extent.is_finite()) {
+        return 1.0;
+    }
+    let e = BVH_SCENE_SIZE_LOG2 - extent.log2().ceil() as i32;
+    2f32.powi(e.clamp(-100, 100))
 }
 
 impl Geometry {
@@ -425,7 +445,14 @@ impl Geometry {
                 }),
             }
         }
-        let (bvh, _) = crate::bvh::build(&prims);
+        let boxes: Vec<Aabb> = prims.iter().map(Boundable::aabb).collect();
+        let total = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
+        let scale = bvh_scale(&total);
+        let scaled: Vec<Aabb> = boxes
+            .iter()
+            .map(|b| Aabb::new(b.min * scale, b.max * scale))
+            .collect();
+        let (bvh, _) = crate::bvh::build(&scaled);
         let primitives = bvh
             .primitive_indices
             .iter()
@@ -435,6 +462,7 @@ impl Geometry {
             shapes,
             primitives,
             bvh,
+            bvh_scale: scale,
         }
     }
 
@@ -442,11 +470,22 @@ impl Geometry {
         &self.shapes
     }
 
-    fn bvh_ray(ray: &Ray) -> BvhRay {
+    /// The ray in the BVH's space, with a unit direction, and the factor k with which a
+    /// distance t along `ray` is k·t along it; `None` for a ray without a direction.
+    fn bvh_ray(&self, ray: &Ray) -> Option<(BvhRay, f32)> {
+        let length = ray.direction.length();
+        if !(length > 0.0 && length.is_finite()) {
+            return None;
+        }
         // Adding +0 turns -0 components into +0: obvhs takes the direction's octant from the
         // comparison with zero but the inverse's sign from signum, which disagree for -0.
-        let direction = ray.direction + Vec3::ZERO;
-        BvhRay::new(ray.origin.into(), direction.into(), 0.0, ray.t_max)
+        let direction = ray.direction / length + Vec3::ZERO;
+        let k = self.bvh_scale * length;
+        let origin = ray.origin * self.bvh_scale;
+        Some((
+            BvhRay::new(origin.into(), direction.into(), 0.0, ray.t_max * k),
+            k,
+        ))
     }
 
     /// The closest intersection along the ray, if any.
@@ -462,40 +501,38 @@ impl Geometry {
         if self.primitives.is_empty() {
             return None;
         }
+        let (bvh_ray, k) = self.bvh_ray(ray)?;
         let shear = RayShear::new(ray.direction);
-        let mut hit = RayHit::none();
-        let mut barycentrics = [0.0f32; 3];
-        let found = self
-            .bvh
-            .ray_traverse(Self::bvh_ray(ray), &mut hit, |r, slot| {
-                match &self.primitives[slot] {
-                    Primitive::Triangle { p, .. } => {
-                        match intersect_triangle(ray, &shear, r.tmax, p) {
-                            // The traversal keeps a hit only if it is strictly closer than the best.
-                            Some((t, b)) if t < r.tmax => {
-                                barycentrics = b;
-                                t
-                            }
-                            _ => f32::INFINITY,
+        // The closest hit so far, in the units of `ray` (the traversal's own distances are
+        // rounded from these, so they only prune).
+        let mut closest: Option<FirstHit> = None;
+        let mut t_max = ray.t_max;
+        self.bvh
+            .ray_traverse(bvh_ray, &mut RayHit::none(), |_, slot| {
+                let (t, shape, barycentrics) = match &self.primitives[slot] {
+                    Primitive::Triangle { p, shape, .. } => {
+                        match intersect_triangle(ray, &shear, t_max, p) {
+                            Some((t, b)) if t < t_max => (t, *shape, b),
+                            _ => return f32::INFINITY,
                         }
                     }
-                    Primitive::Sphere { sphere, .. } => {
-                        intersect_sphere(ray, r.tmax, sphere).unwrap_or(f32::INFINITY)
+                    Primitive::Sphere { sphere, shape } => {
+                        match intersect_sphere(ray, t_max, sphere) {
+                            Some(t) => (t, *shape, [0.0; 3]),
+                            None => return f32::INFINITY,
+                        }
                     }
-                }
+                };
+                t_max = t;
+                closest = Some(FirstHit {
+                    t,
+                    shape,
+                    slot: slot as u32,
+                    barycentrics,
+                });
+                t * k
             });
-        found.then(|| {
-            let slot = hit.primitive_id;
-            let shape = match self.primitives[slot as usize] {
-                Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => shape,
-            };
-            FirstHit {
-                t: hit.t,
-                slot,
-                shape,
-                barycentrics,
-            }
-        })
+        closest
     }
 
     /// The intersection record of a hit [`Geometry::first_hit`] found along `ray`.
@@ -555,17 +592,21 @@ impl Geometry {
         if self.primitives.is_empty() {
             return false;
         }
+        let Some((bvh_ray, _)) = self.bvh_ray(ray) else {
+            return false;
+        };
         let shear = RayShear::new(ray.direction);
-        !self
-            .bvh
-            .ray_traverse_miss(Self::bvh_ray(ray), |r, slot| match &self.primitives[slot] {
-                Primitive::Triangle { p, .. } => {
-                    intersect_triangle(ray, &shear, r.tmax, p).map_or(f32::INFINITY, |(t, _)| t)
-                }
+        // Any hit before `ray.t_max` ends the traversal: 0 is below its bound.
+        !self.bvh.ray_traverse_miss(bvh_ray, |_, slot| {
+            let blocked = match &self.primitives[slot] {
+                Primitive::Triangle { p, .. } => intersect_triangle(ray, &shear, ray.t_max, p)
+                    .is_some_and(|(t, _)| t < ray.t_max),
                 Primitive::Sphere { sphere, .. } => {
-                    intersect_sphere(ray, r.tmax, sphere).unwrap_or(f32::INFINITY)
+                    intersect_sphere(ray, ray.t_max, sphere).is_some()
                 }
-            })
+            };
+            if blocked { 0.0 } else { f32::INFINITY }
+        })
     }
 }
 

@@ -11,12 +11,12 @@
 //! - every PLOC tree's depth is measured, and one as deep as the traversal stack is rebuilt the
 //!   same way.
 
+use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
-use obvhs::{Boundable, BvhBuildParams};
 use std::time::Duration;
 
 /// obvhs's traversal stack (`cwbvh::TRAVERSAL_STACK_SIZE`, private): trees must be shallower.
@@ -40,12 +40,12 @@ pub enum Builder {
     BinnedSah,
 }
 
-/// Builds the CWBVH over `primitives`; its depth is below obvhs's traversal stack.
-pub fn build<T: Boundable>(primitives: &[T]) -> (CwBvh, Builder) {
-    let aabbs: Vec<Aabb> = primitives.iter().map(Boundable::aabb).collect();
-    if !heavily_overlapping(&aabbs) {
+/// Builds the CWBVH over primitives with the boxes `aabbs`; its depth is below obvhs's
+/// traversal stack.
+pub fn build(aabbs: &[Aabb]) -> (CwBvh, Builder) {
+    if !heavily_overlapping(aabbs) {
         let bvh = obvhs::cwbvh::builder::build_cwbvh(
-            primitives,
+            aabbs,
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );
@@ -53,7 +53,7 @@ pub fn build<T: Boundable>(primitives: &[T]) -> (CwBvh, Builder) {
             return (bvh, Builder::Ploc);
         }
     }
-    let bvh2 = binned_sah_bvh2(&aabbs);
+    let bvh2 = binned_sah_bvh2(aabbs);
     (bvh2_to_cwbvh(&bvh2, 3, true, false), Builder::BinnedSah)
 }
 
@@ -231,9 +231,10 @@ fn median_split(range: &mut [u32], centroids: &[[f32; 3]]) -> usize {
 mod tests {
     use super::*;
     use glam::Vec3A;
+    use obvhs::Boundable;
 
-    /// A fan of `n` thin triangles around the origin, as the built-in disk.
-    fn fan(n: usize) -> Vec<obvhs::triangle::Triangle> {
+    /// The boxes of a fan of `n` thin triangles around the origin, as the built-in disk.
+    fn fan(n: usize) -> Vec<Aabb> {
         (0..n)
             .map(|i| {
                 let a = std::f32::consts::TAU * i as f32 / n as f32;
@@ -243,6 +244,7 @@ mod tests {
                     v1: Vec3A::new(a.cos(), a.sin(), 0.0),
                     v2: Vec3A::new(b.cos(), b.sin(), 0.0),
                 }
+                .aabb()
             })
             .collect()
     }
@@ -286,11 +288,14 @@ mod tests {
         for y in 0..64 {
             for x in 0..64 {
                 let p = Vec3A::new(x as f32, y as f32, 0.0);
-                tris.push(obvhs::triangle::Triangle {
-                    v0: p,
-                    v1: p + Vec3A::X,
-                    v2: p + Vec3A::Y,
-                });
+                tris.push(
+                    obvhs::triangle::Triangle {
+                        v0: p,
+                        v1: p + Vec3A::X,
+                        v2: p + Vec3A::Y,
+                    }
+                    .aabb(),
+                );
             }
         }
         let (bvh, builder) = build(&tris);

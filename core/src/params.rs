@@ -448,8 +448,7 @@ impl Params {
                 .map(f64::from),
             Some(v) => as_triple(v).ok_or_else(|| self.wrong_type(name, EXPECTED, v))?,
         };
-        if v
-            .iter()
+        if v.iter()
             .any(|&x| !in_range(x, -MAX_COORDINATE, MAX_COORDINATE))
         {
             return Err(self.bad_number(spec, &v));
