@@ -8,6 +8,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lumis::image_io::{self, FileWriter, Metadata};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 #[derive(Parser)]
 #[command(
@@ -328,8 +329,10 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     // Ctrl-C (or SIGTERM) stops the render; what is finished is written, marked partial.
     let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
-    if !args.quiet && !terminal {
-        // Without a terminal there is no progress bar: say when the render starts.
+    // Without a terminal there is no progress bar: a line when the render starts and at each
+    // tenth, for logs (and for tests that interrupt a render once it runs).
+    let log_progress = !args.quiet && !terminal;
+    if log_progress {
         eprintln!(
             "rendering {} ({}x{}, {} spp)",
             args.scene.display(),
@@ -338,11 +341,22 @@ fn render(args: RenderArgs) -> Result<()> {
             loaded.scene.spp
         );
     }
+    let pixels_done = AtomicU64::new(0);
+    let on_tile = |n: u64| {
+        bar.inc(n);
+        if log_progress {
+            let before = pixels_done.fetch_add(n, Ordering::Relaxed);
+            let tenth = (before + n) * 10 / pixels.max(1);
+            if tenth > before * 10 / pixels.max(1) && tenth < 10 {
+                eprintln!("rendered {}%", tenth * 10);
+            }
+        }
+    };
     let (film, stats) = lumis::render::render_cancellable(
         &loaded.scene,
         loaded.integrator.as_ref(),
         threads,
-        &|n| bar.inc(n),
+        &on_tile,
         &cancel,
     )
     .context("cannot start the render threads")?;

@@ -47,7 +47,8 @@ impl Camera {
                 ));
             }
         }
-        let forward = (target - position).normalize_or_zero();
+        // Scaled before normalising: a camera 1e-25 from its target still has a direction.
+        let forward = crate::scene::shapes::unit_normal(target - position);
         if forward == Vec3::ZERO {
             return Err("camera `position` and `target` must differ".into());
         }
