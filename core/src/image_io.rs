@@ -263,10 +263,6 @@ pub fn png_writer(film: &Film, exposure: f32) -> FileWriter<'_> {
 fn exr_error(path: &Path, e: exr::error::Error) -> String {
     match e {
         exr::error::Error::Io(io) => format!("cannot read EXR file `{}`: {io}", path.display()),
-        // A valid file lumis cannot use (too large, no RGB channels).
-        exr::error::Error::NotSupported(why) => {
-            format!("`{}` cannot be used: {why}", path.display())
-        }
         other => format!("`{}` is not a valid EXR file: {other}", path.display()),
     }
 }
@@ -310,7 +306,10 @@ pub struct RgbImage {
 /// and non-finite values are left to the caller, which reads them as no light).
 pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
     let bytes = std::fs::read(path).map_err(|e| exr_error(path, exr::error::Error::Io(e)))?;
-    let image = decode_exr_rgb(&bytes).map_err(|e| exr_error(path, e))?;
+    let image = decode_exr_rgb(&bytes).map_err(|e| match e {
+        DecodeError::Exr(e) => exr_error(path, e),
+        DecodeError::Unusable(why) => format!("`{}` cannot be used: {why}", path.display()),
+    })?;
     let max = crate::limits::MAX_EMISSION;
     if let Some((i, c)) = image.pixels.iter().enumerate().find_map(|(i, p)| {
         p.to_array()
@@ -330,13 +329,28 @@ pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
     Ok(image)
 }
 
+/// Why EXR data gave no RGB image.
+#[derive(Debug)]
+pub enum DecodeError {
+    /// Not a valid EXR (the decoder's reason).
+    Exr(exr::error::Error),
+    /// A valid EXR lumis cannot use: no R, G and B channels, or more pixels than it reads.
+    Unusable(String),
+}
+
+impl From<exr::error::Error> for DecodeError {
+    fn from(e: exr::error::Error) -> Self {
+        DecodeError::Exr(e)
+    }
+}
+
 /// The largest image (in pixels) an EXR may declare: 2²⁷, a 16384 × 8192 environment map. The
 /// header's size is checked before any pixel memory is allocated (a corrupt header asked for
 /// terabytes; found by fuzzing).
 pub const MAX_EXR_PIXELS: usize = 1 << 27;
 
 /// Decodes the first RGB(A) layer of EXR data held in memory; never panics on bad data.
-pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
+pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, DecodeError> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)?;
     let has_rgb = |h: &exr::meta::header::Header| {
         ["R", "G", "B"].iter().all(|name| {
@@ -352,15 +366,13 @@ pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
             .iter()
             .flat_map(|h| h.channels.list.iter().map(|c| c.name.to_string()))
             .collect();
-        return Err(exr::error::Error::NotSupported(std::borrow::Cow::Owned(
-            format!(
-                "an RGB image needs channels R, G and B; this one has {}",
-                if found.is_empty() {
-                    "none".to_string()
-                } else {
-                    found.join(", ")
-                }
-            ),
+        return Err(DecodeError::Unusable(format!(
+            "an RGB image needs channels R, G and B; this one has {}",
+            if found.is_empty() {
+                "none".to_string()
+            } else {
+                found.join(", ")
+            }
         )));
     }
     for header in &meta.headers {
@@ -370,12 +382,10 @@ pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
             .checked_mul(size.height())
             .is_none_or(|area| area > MAX_EXR_PIXELS)
         {
-            return Err(exr::error::Error::NotSupported(std::borrow::Cow::Owned(
-                format!(
-                    "{}x{} pixels is more than lumis reads ({MAX_EXR_PIXELS})",
-                    size.width(),
-                    size.height()
-                ),
+            return Err(DecodeError::Unusable(format!(
+                "{}x{} pixels is more than lumis reads ({MAX_EXR_PIXELS})",
+                size.width(),
+                size.height()
             )));
         }
     }
