@@ -126,8 +126,10 @@ fn field_before(text: &str, offset: usize) -> Option<&str> {
     let before = text[..offset].trim_end();
     let before = before.strip_suffix(':')?.trim_end();
     let start = before
-        .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-        .map_or(0, |i| i + 1);
+        .char_indices()
+        .rev()
+        .find(|(_, c)| !(c.is_ascii_alphanumeric() || *c == '_'))
+        .map_or(0, |(i, c)| i + c.len_utf8());
     let name = &before[start..];
     (!name.is_empty() && !name.starts_with(|c: char| c.is_ascii_digit())).then_some(name)
 }
@@ -240,6 +242,32 @@ mod tests {
         assert!(m.contains("`seed` must be a whole number in 0..=18446744073709551615"));
         let (_, _, m) = message("(width: \"big\")");
         assert_eq!(m, "`width` must be a whole number (Expected integer)");
+    }
+
+    #[test]
+    fn text_that_is_not_ascii_is_sliced_at_character_boundaries() {
+        assert_eq!(field_before("(wïdth: 64", 9), Some("dth"));
+        assert_eq!(number_around("é64.5é", 3), Some((2, "64.5")));
+        // A field name ending in a two-byte character, numbers next to multi-byte text.
+        for text in [
+            "(wïdth: 64.5)",
+            "(width: 64.5é)",
+            "(é64.5)",
+            "(width: \"ü, seed: 3)",
+        ] {
+            if let Err(e) = ron::from_str::<ron::Value>(text) {
+                let _ = explain(text, &e);
+            }
+            #[derive(serde::Deserialize, Debug)]
+            #[allow(dead_code)]
+            struct Film {
+                width: u32,
+            }
+            if let Err(e) = ron::from_str::<Film>(text) {
+                let (line, col, message) = explain(text, &e);
+                assert!(line >= 1 && col >= 1 && !message.is_empty());
+            }
+        }
     }
 
     #[test]
