@@ -298,7 +298,7 @@ pub fn check_shape(shape: &ShapeGeometry) -> Result<(), String> {
     check_coordinates(shape)?;
     match shape {
         ShapeGeometry::Sphere(s) => {
-            if !(s.radius >= MIN_SHAPE_SIZE) {
+            if s.radius < MIN_SHAPE_SIZE {
                 return Err(format!(
                     "the sphere's radius {} is below the smallest supported size, {}",
                     fmt_f32(s.radius),
@@ -312,7 +312,7 @@ pub fn check_shape(shape: &ShapeGeometry) -> Result<(), String> {
                 |(lo, hi), p| (lo.min(*p), hi.max(*p)),
             );
             let size = (hi - lo).as_dvec3().length();
-            if !(size >= MIN_SHAPE_SIZE as f64) {
+            if size < MIN_SHAPE_SIZE as f64 {
                 return Err(format!(
                     "its size (bounding-box diagonal) is {}, below the smallest supported size, {}",
                     fmt_f32(size as f32),

@@ -158,7 +158,7 @@ fn sah_split(range: &mut [u32], aabbs: &[Aabb], centroids: &[[f32; 3]]) -> Optio
     let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bins on the left)
     for axis in 0..3 {
         let extent = hi[axis] - lo[axis];
-        if !(extent > 0.0) {
+        if extent <= 0.0 {
             continue;
         }
         let scale = BINS as f32 / extent;
@@ -231,7 +231,6 @@ fn median_split(range: &mut [u32], centroids: &[[f32; 3]]) -> usize {
 mod tests {
     use super::*;
     use glam::Vec3A;
-    use obvhs::Boundable;
 
     /// The boxes of a fan of `n` thin triangles around the origin, as the built-in disk.
     fn fan(n: usize) -> Vec<Aabb> {

@@ -305,7 +305,7 @@ fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Mesh, String> {
                 positions.len()
             ));
         }
-        if prim.mode() == Mode::Triangles && indices.len() % 3 != 0 {
+        if prim.mode() == Mode::Triangles && !indices.len().is_multiple_of(3) {
             return Err(format!(
                 "{label}: a triangle list of {} {} is not a multiple of 3 (the list is truncated)",
                 indices.len(),

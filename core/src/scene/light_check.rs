@@ -128,7 +128,7 @@ fn emits_back(scene: &Scene, ray: &Ray, hit: Option<&Intersection>) -> bool {
     let Some(hit) = hit else {
         return nonzero(scene.environment_radiance(ray.direction));
     };
-    scene.emitter_of(&hit).is_some_and(|e| {
+    scene.emitter_of(hit).is_some_and(|e| {
         let at = EmitterHit {
             position: hit.position,
             normal: hit.geometric_normal,
