@@ -4,7 +4,6 @@
 //! that names the limit it crosses. Within the supported range it renders the same image as at
 //! scale 1: the sampler draws the same numbers, so only rounding at silhouettes can differ.
 
-mod common;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 use std::path::Path;
@@ -109,11 +108,11 @@ fn base64(bytes: &[u8]) -> String {
 fn render(kind: &str, s: f64) -> Result<Vec<f64>, String> {
     let dir = tempfile::tempdir().unwrap();
     let path = scene(dir.path(), kind, s);
-    let loaded = common::load(&path, &[]).map_err(|e| e.to_string())?;
+    let loaded = crate::common::load(&path, &[]).map_err(|e| e.to_string())?;
     let film = lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 1, &|_| {})
         .expect("render")
         .0;
-    common::assert_finite_outputs(&film, &format!("{kind} at scale {s:e}"));
+    crate::common::assert_finite_outputs(&film, &format!("{kind} at scale {s:e}"));
     Ok(film
         .color
         .iter()
