@@ -1,0 +1,181 @@
+//! MIS weighting: how one phase's samples of one light are combined into an estimate.
+//!
+//! With counts n_B, n_L and densities p_B, p_L, the multi-sample MIS estimate is
+//!
+//! ```text
+//!   L̂ = Σ_{BSDF samples} w_B f / (n_B p_B) + Σ_{light samples} w_L f / (n_L p_L),
+//! ```
+//!
+//! unbiased whenever w_B + w_L = 1 wherever f ≠ 0 (Veach 1997). A [`Weighting`] sees the whole
+//! phase at once, so methods whose weights depend on every sample (optimal MIS weights from a
+//! linear system over the batch) fit as well as per-sample [`Heuristic`]s, which [`PerSample`]
+//! turns into a weighting.
+
+use crate::phase::Phase;
+use lumis_core::math::Rgb;
+use lumis_core::scene::Scene;
+
+/// Combines one phase's samples into its estimate.
+pub trait Weighting: Send + Sync {
+    /// Writes each record's contribution to the estimate into `contributions` (as long as
+    /// `phase.records`; zero for black records) and returns their sum, the phase's estimate.
+    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb;
+
+    /// Work once per scene before rendering (e.g. a pilot pass that measures per-technique
+    /// statistics per block of pixels, which `weigh` then reads through `phase.pixel`).
+    fn preprocess(&mut self, _scene: &Scene) {}
+}
+
+/// A per-sample weight: the weight of a sample whose technique has n·p = `mine` against the
+/// other technique's n·p = `other` at the sample's direction. Only called with `mine ≠ other`
+/// (equal products weigh ½ each); must satisfy w(a, b) + w(b, a) = 1 for all a, b ≥ 0,
+/// including 0 and ∞, so that the estimate is unbiased.
+pub trait Heuristic: Send + Sync {
+    fn weight(&self, mine: f32, other: f32) -> f32;
+}
+
+/// The multi-sample estimator with the per-sample weights of a [`Heuristic`]. A Dirac BSDF
+/// sample, which light sampling cannot produce, has weight 1 and contributes f / n_B (its
+/// record's f is already divided by the Dirac density).
+pub struct PerSample<H>(pub H);
+
+impl<H: Heuristic> PerSample<H> {
+    #[inline]
+    fn weight(&self, mine: f32, other: f32) -> f32 {
+        if mine == other {
+            0.5
+        } else {
+            self.0.weight(mine, other)
+        }
+    }
+}
+
+impl<H: Heuristic> Weighting for PerSample<H> {
+    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
+        let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
+        let (bsdf, light) = contributions.split_at_mut(phase.split.n_bsdf as usize);
+        let mut value = Rgb::ZERO;
+        for (r, c) in phase.bsdf_records().iter().zip(bsdf) {
+            *c = if r.is_black() {
+                Rgb::ZERO
+            } else if r.delta {
+                r.f / n_b
+            } else {
+                let w = self.weight(n_b * r.p_bsdf, n_l * r.p_light);
+                r.f * (w / (n_b * r.p_bsdf))
+            };
+            value += *c;
+        }
+        for (r, c) in phase.light_records().iter().zip(light) {
+            *c = if r.is_black() {
+                Rgb::ZERO
+            } else {
+                let w = self.weight(n_l * r.p_light, n_b * r.p_bsdf);
+                r.f * (w / (n_l * r.p_light))
+            };
+            value += *c;
+        }
+        value
+    }
+}
+
+/// Checks for heuristics' unit tests: weights in [0, 1] that sum to one over the two
+/// techniques, for ordinary, equal, zero, infinite and extreme products.
+#[cfg(test)]
+pub(crate) fn assert_partition_of_unity(h: &dyn Heuristic) {
+    let values = [
+        0.0f32,
+        1e-30,
+        0.3,
+        1.0,
+        1.0 + 1e-7,
+        2.0,
+        3.0,
+        1e30,
+        f32::INFINITY,
+    ];
+    for a in values {
+        for b in values {
+            let w = |x: f32, y: f32| if x == y { 0.5 } else { h.weight(x, y) };
+            let (wa, wb) = (w(a, b), w(b, a));
+            assert!((0.0..=1.0).contains(&wa), "w({a}, {b}) = {wa}");
+            assert!(
+                (wa + wb - 1.0).abs() < 1e-6,
+                "w({a}, {b}) + w({b}, {a}) = {}",
+                wa + wb
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::allocation::SampleSplit;
+    use crate::balance::Balance;
+    use crate::estimator::SampleRecord;
+    use glam::UVec2;
+    use lumis_core::sampler::Sampler;
+
+    /// Random records of both techniques, some black, one Dirac (a BSDF sample).
+    fn records(split: SampleSplit) -> Vec<SampleRecord> {
+        let mut s = Sampler::new(3, 4, 5);
+        let mut v: Vec<SampleRecord> = (0..split.total())
+            .map(|i| SampleRecord {
+                f: if i % 5 == 0 {
+                    Rgb::ZERO
+                } else {
+                    Rgb::new(s.next_1d(), s.next_1d(), s.next_1d())
+                },
+                p_bsdf: 0.1 + 3.0 * s.next_1d(),
+                // Some BSDF samples in directions the light cannot produce.
+                p_light: if i < split.n_bsdf && i % 7 == 0 {
+                    0.0
+                } else {
+                    0.1 + 3.0 * s.next_1d()
+                },
+                delta: false,
+            })
+            .collect();
+        v[1].delta = true;
+        v[1].p_light = 0.0;
+        v
+    }
+
+    /// The balance heuristic is the mixture (defensive) estimator Σ f / (n_B p_B + n_L p_L)
+    /// over all samples (a Dirac sample contributing f / n_B), computed here independently.
+    #[test]
+    fn balance_is_the_mixture_estimator() {
+        for split in [
+            SampleSplit::new(0.5, 16),
+            SampleSplit::new(0.2, 11),
+            SampleSplit::new(0.9, 13),
+        ] {
+            let records = records(split);
+            let phase = Phase {
+                pixel: UVec2::ZERO,
+                light: 0,
+                split,
+                records: &records,
+            };
+            let mut contributions = vec![Rgb::ZERO; records.len()];
+            let value = PerSample(Balance).weigh(&phase, &mut contributions);
+            let (n_b, n_l) = (split.n_bsdf as f64, split.n_light as f64);
+            let mut expected = glam::DVec3::ZERO;
+            for r in &records {
+                if r.delta {
+                    expected += r.f.as_dvec3() / n_b;
+                } else if !r.is_black() {
+                    let mix = n_b * r.p_bsdf as f64 + n_l * r.p_light as f64;
+                    expected += r.f.as_dvec3() / mix;
+                }
+            }
+            let sum: Rgb = contributions.iter().copied().sum();
+            assert!(
+                (value.as_dvec3() - expected).abs().max_element() < 1e-5 * expected.max_element(),
+                "{split:?}: {value} vs {expected}"
+            );
+            assert_eq!(sum, value, "contributions add up to the estimate");
+        }
+    }
+}
