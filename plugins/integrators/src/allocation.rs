@@ -56,7 +56,11 @@ pub trait Allocation: Send + Sync {
     /// Estimates the light of `sampling` at its shading point with its N =
     /// `sampling.samples()` samples, each phase weighted by `weighting` (or by a weighting the
     /// method builds itself, e.g. from a pilot).
-    fn estimate(&self, sampling: &mut LightSampling, weighting: &dyn Weighting) -> LightEstimate;
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate;
 
     /// Work once per scene before rendering (e.g. a pilot pass over the image whose
     /// statistics, filtered over neighbouring pixels, `estimate` then reads per pixel and light
@@ -144,12 +148,12 @@ impl<'a> LightSampling<'a> {
     /// Draws one phase (`split.n_bsdf` BSDF samples, then `split.n_light` light samples, from
     /// the camera sample's stream), weighs it with `weighting`, shows it to `observer` and to
     /// the AOV statistics (as `role` says), and returns its estimate.
-    pub fn phase(
+    pub fn phase<W: Weighting + ?Sized, O: Observer + ?Sized>(
         &mut self,
         split: SampleSplit,
         role: PhaseRole,
-        weighting: &dyn Weighting,
-        observer: &mut dyn Observer,
+        weighting: &W,
+        observer: &mut O,
     ) -> Rgb {
         let PhaseBuffers {
             records,
@@ -184,7 +188,11 @@ pub struct FixedAlpha {
 }
 
 impl Allocation for FixedAlpha {
-    fn estimate(&self, sampling: &mut LightSampling, weighting: &dyn Weighting) -> LightEstimate {
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate {
         let n = sampling.samples();
         let alpha = if self.alpha == 0.0 && sampling.shading_point().is_pure_delta() {
             1.0

@@ -167,7 +167,11 @@ pub struct SecondOrderAlpha {
 }
 
 impl Allocation for SecondOrderAlpha {
-    fn estimate(&self, sampling: &mut LightSampling, weighting: &dyn Weighting) -> LightEstimate {
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate {
         let n = sampling.samples();
         let mut moments = SecondOrderMoments::default();
         match self.mode {

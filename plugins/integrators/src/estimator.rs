@@ -112,7 +112,9 @@ impl SampleRecord {
     /// Whether the sample contributes nothing to this light.
     #[inline]
     pub fn is_black(&self) -> bool {
-        self.f == Rgb::ZERO
+        // One test instead of three: ±0 in every channel (NaN is not black).
+        let bits = |v: f32| v.to_bits() << 1;
+        bits(self.f.x) | bits(self.f.y) | bits(self.f.z) == 0
     }
 }
 

@@ -29,7 +29,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
 inventory::submit! {
     IntegratorPlugin {
         name: NAME,
-        description: "direct lighting from light sampling only",
+        description: "direct lighting from light sampling only (BSDF sampling only for Dirac lobes)",
         params: PARAMS,
         create,
     }

@@ -42,36 +42,34 @@ pub const AOVS_SPEC: ParamSpec = ParamSpec {
     description: "extra output layers: alpha (per light, combined, and coloured), sampling_variance (V[L_1] per pixel, summed over lights), samples (BSDF and light sample counts)",
 };
 
-/// A member of the MIS family.
-pub struct MisIntegrator {
+/// A member of the MIS family: an allocation and a weighting, both known at compile time, so
+/// that a plugin's whole per-sample path is compiled for them (no dynamic call per sample, nor
+/// per phase).
+pub struct MisIntegrator<A, W> {
     /// N, samples per light per camera sample.
     samples: u32,
-    allocation: Box<dyn Allocation>,
-    weighting: Box<dyn Weighting>,
+    allocation: A,
+    weighting: W,
     aovs: AovRequest,
 }
 
-impl MisIntegrator {
+impl<A: Allocation + 'static, W: Weighting + 'static> MisIntegrator<A, W> {
     /// Reads the family's parameters (`samples`, `aovs`) and combines `allocation` and
     /// `weighting`.
-    pub fn new(
-        params: &mut Params,
-        allocation: impl Allocation + 'static,
-        weighting: impl Weighting + 'static,
-    ) -> Result<Self, PluginError> {
+    pub fn new(params: &mut Params, allocation: A, weighting: W) -> Result<Self, PluginError> {
         Ok(MisIntegrator {
             samples: params.int(SAMPLES)? as u32,
             aovs: AovRequest::from_names(&params.list(AOVS)?),
-            allocation: Box::new(allocation),
-            weighting: Box::new(weighting),
+            allocation,
+            weighting,
         })
     }
 
     /// As [`new`](Self::new), boxed as a plugin's `create` returns it.
     pub fn boxed(
         params: &mut Params,
-        allocation: impl Allocation + 'static,
-        weighting: impl Weighting + 'static,
+        allocation: A,
+        weighting: W,
     ) -> Result<Box<dyn Integrator>, PluginError> {
         Ok(Box::new(Self::new(params, allocation, weighting)?))
     }
@@ -83,7 +81,7 @@ thread_local! {
         std::cell::RefCell::new(PhaseBuffers::default());
 }
 
-impl Integrator for MisIntegrator {
+impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
     fn aovs(&self, scene: &Scene) -> Vec<Aov> {
         self.aovs.declare(scene)
     }
@@ -123,9 +121,7 @@ impl Integrator for MisIntegrator {
                 if self.aovs.any() {
                     sampling = sampling.with_tally(&mut tally);
                 }
-                let estimate = self
-                    .allocation
-                    .estimate(&mut sampling, self.weighting.as_ref());
+                let estimate = self.allocation.estimate(&mut sampling, &self.weighting);
                 radiance += estimate.value;
                 if self.aovs.any() {
                     self.aovs.add(sums, light, &estimate, &tally);

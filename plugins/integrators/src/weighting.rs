@@ -18,7 +18,8 @@ use lumis_core::scene::Scene;
 /// Combines one phase's samples into its estimate.
 pub trait Weighting: Send + Sync {
     /// Writes each record's contribution to the estimate into `contributions` (as long as
-    /// `phase.records`; zero for black records) and returns their sum, the phase's estimate.
+    /// `phase.records`, all zero on entry; black records contribute zero) and returns their
+    /// sum, the phase's estimate.
     fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb;
 
     /// Work once per scene before rendering (e.g. a pilot pass that measures per-technique
@@ -55,10 +56,13 @@ impl<H: Heuristic> Weighting for PerSample<H> {
         let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
         let (bsdf, light) = contributions.split_at_mut(phase.split.n_bsdf as usize);
         let mut value = Rgb::ZERO;
+        // Black records keep the zero their contribution starts with (adding it to the sum
+        // would change no bit).
         for (r, c) in phase.bsdf_records().iter().zip(bsdf) {
-            *c = if r.is_black() {
-                Rgb::ZERO
-            } else if r.delta {
+            if r.is_black() {
+                continue;
+            }
+            *c = if r.delta {
                 r.f / n_b
             } else {
                 let w = self.weight(n_b * r.p_bsdf, n_l * r.p_light);
@@ -67,12 +71,11 @@ impl<H: Heuristic> Weighting for PerSample<H> {
             value += *c;
         }
         for (r, c) in phase.light_records().iter().zip(light) {
-            *c = if r.is_black() {
-                Rgb::ZERO
-            } else {
-                let w = self.weight(n_l * r.p_light, n_b * r.p_bsdf);
-                r.f * (w / (n_l * r.p_light))
-            };
+            if r.is_black() {
+                continue;
+            }
+            let w = self.weight(n_l * r.p_light, n_b * r.p_bsdf);
+            *c = r.f * (w / (n_l * r.p_light));
             value += *c;
         }
         value
