@@ -11,6 +11,7 @@
 use crate::allocation::FixedAlpha;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::weighting::{Heuristic, PerSample};
+use glam::Vec4;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -26,6 +27,11 @@ impl Heuristic for Balance {
     #[inline]
     fn weight(&self, mine: f32, other: f32) -> f32 {
         1.0 / (1.0 + other / mine)
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        Vec4::ONE / (Vec4::ONE + other / mine)
     }
 }
 

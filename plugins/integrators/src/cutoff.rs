@@ -18,6 +18,7 @@
 use crate::allocation::FixedAlpha;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::weighting::{Heuristic, PerSample};
+use glam::Vec4;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -42,6 +43,14 @@ impl Heuristic for Cutoff {
         } else {
             1.0 / (1.0 + other / mine)
         }
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        let t = Vec4::splat(self.threshold);
+        let balance = Vec4::ONE / (Vec4::ONE + other / mine);
+        let kept = Vec4::select((other * t).cmpgt(mine), Vec4::ZERO, balance);
+        Vec4::select((mine * t).cmpgt(other), Vec4::ONE, kept)
     }
 }
 

@@ -10,6 +10,7 @@
 use crate::allocation::FixedAlpha;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::weighting::{Heuristic, PerSample};
+use glam::Vec4;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -27,6 +28,12 @@ impl Heuristic for Power {
     fn weight(&self, mine: f32, other: f32) -> f32 {
         let r = other / mine;
         1.0 / (1.0 + r * r)
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        let r = other / mine;
+        Vec4::ONE / (Vec4::ONE + r * r)
     }
 }
 

@@ -11,7 +11,9 @@
 //! linear system over the batch) fit as well as per-sample [`Heuristic`]s, which [`PerSample`]
 //! turns into a weighting.
 
+use crate::estimator::SampleRecord;
 use crate::phase::Phase;
+use glam::Vec4;
 use lumis_core::math::Rgb;
 use lumis_core::scene::Scene;
 
@@ -33,6 +35,20 @@ pub trait Weighting: Send + Sync {
 /// including 0 and ∞, so that the estimate is unbiased.
 pub trait Heuristic: Send + Sync {
     fn weight(&self, mine: f32, other: f32) -> f32;
+
+    /// Four weights at once, lane i being `weight(mine[i], other[i])` bit for bit; lanes with
+    /// equal products are discarded, whatever they hold. The default calls `weight` four times;
+    /// a heuristic whose formula is plain arithmetic overrides it with vector arithmetic (four
+    /// divisions for the price of one: the weighting pass is bound by its divisions).
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        Vec4::new(
+            self.weight(mine.x, other.x),
+            self.weight(mine.y, other.y),
+            self.weight(mine.z, other.z),
+            self.weight(mine.w, other.w),
+        )
+    }
 }
 
 /// The multi-sample estimator with the per-sample weights of a [`Heuristic`]. A Dirac BSDF
@@ -41,12 +57,40 @@ pub trait Heuristic: Send + Sync {
 pub struct PerSample<H>(pub H);
 
 impl<H: Heuristic> PerSample<H> {
+    /// Weighs the records of one technique (n_own samples, against n_other of the other),
+    /// adding their contributions to `value` in order. `products` gives a record's (own, other)
+    /// densities. Weights are computed four records at a time.
     #[inline]
-    fn weight(&self, mine: f32, other: f32) -> f32 {
-        if mine == other {
-            0.5
-        } else {
-            self.0.weight(mine, other)
+    fn weigh_technique(
+        &self,
+        records: &[SampleRecord],
+        (n_own, n_other): (f32, f32),
+        densities: impl Fn(&SampleRecord) -> (f32, f32),
+        contributions: &mut [Rgb],
+        value: &mut Rgb,
+    ) {
+        for (chunk, out) in records.chunks(4).zip(contributions.chunks_mut(4)) {
+            // Lanes past the end hold equal products, which weigh ½ and are not used.
+            let (mut mine, mut other) = ([1.0f32; 4], [1.0f32; 4]);
+            for (i, r) in chunk.iter().enumerate() {
+                let (p_own, p_other) = densities(r);
+                (mine[i], other[i]) = (n_own * p_own, n_other * p_other);
+            }
+            let (mine, other) = (Vec4::from_array(mine), Vec4::from_array(other));
+            let w = Vec4::select(
+                mine.cmpeq(other),
+                Vec4::splat(0.5),
+                self.0.weight4(mine, other),
+            );
+            // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
+            let scale = (w / mine).to_array();
+            for ((r, c), scale) in chunk.iter().zip(out).zip(scale) {
+                if r.is_black() {
+                    continue;
+                }
+                *c = if r.delta { r.f / n_own } else { r.f * scale };
+                *value += *c;
+            }
         }
     }
 }
@@ -55,29 +99,23 @@ impl<H: Heuristic> Weighting for PerSample<H> {
     fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
         let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
         let (bsdf, light) = contributions.split_at_mut(phase.split.n_bsdf as usize);
-        let mut value = Rgb::ZERO;
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
-        for (r, c) in phase.bsdf_records().iter().zip(bsdf) {
-            if r.is_black() {
-                continue;
-            }
-            *c = if r.delta {
-                r.f / n_b
-            } else {
-                let w = self.weight(n_b * r.p_bsdf, n_l * r.p_light);
-                r.f * (w / (n_b * r.p_bsdf))
-            };
-            value += *c;
-        }
-        for (r, c) in phase.light_records().iter().zip(light) {
-            if r.is_black() {
-                continue;
-            }
-            let w = self.weight(n_l * r.p_light, n_b * r.p_bsdf);
-            *c = r.f * (w / (n_l * r.p_light));
-            value += *c;
-        }
+        let mut value = Rgb::ZERO;
+        self.weigh_technique(
+            phase.bsdf_records(),
+            (n_b, n_l),
+            |r| (r.p_bsdf, r.p_light),
+            bsdf,
+            &mut value,
+        );
+        self.weigh_technique(
+            phase.light_records(),
+            (n_l, n_b),
+            |r| (r.p_light, r.p_bsdf),
+            light,
+            &mut value,
+        );
         value
     }
 }
@@ -102,6 +140,14 @@ pub(crate) fn assert_partition_of_unity(h: &dyn Heuristic) {
             let w = |x: f32, y: f32| if x == y { 0.5 } else { h.weight(x, y) };
             let (wa, wb) = (w(a, b), w(b, a));
             assert!((0.0..=1.0).contains(&wa), "w({a}, {b}) = {wa}");
+            if a != b {
+                let lanes = h.weight4(Vec4::new(a, 1.0, a, 2.0), Vec4::new(b, 3.0, b, 0.5));
+                assert_eq!(
+                    lanes.x.to_bits(),
+                    wa.to_bits(),
+                    "weight4 lane of ({a}, {b})"
+                );
+            }
             assert!(
                 (wa + wb - 1.0).abs() < 1e-6,
                 "w({a}, {b}) + w({b}, {a}) = {}",
@@ -116,7 +162,6 @@ mod tests {
     use super::*;
     use crate::allocation::SampleSplit;
     use crate::balance::Balance;
-    use crate::estimator::SampleRecord;
     use glam::UVec2;
     use lumis_core::sampler::Sampler;
 
