@@ -258,7 +258,7 @@ pub struct SceneResults {
     pub sweeps: Vec<SweepPoint>,
 }
 
-/// Runs a study, reporting progress on `bar` and stopping at the next tile once `cancel` is set.
+/// Runs a study, reporting progress on `bar` and stopping at the next camera sample once `cancel` is set.
 pub fn run(config: &StudyConfig, bar: &ProgressBar, cancel: &AtomicBool) -> Result<()> {
     validate(config)?;
     if let Some(notes) = &config.notes {
