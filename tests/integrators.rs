@@ -375,3 +375,65 @@ fn the_study_default_integrators_build() {
             .unwrap_or_else(|e| panic!("{text}: {e}"));
     }
 }
+
+/// The phase a `LightSampling` draws at a shading point of the Veach layout: one record per
+/// drawn sample (BSDF ones first), black records contributing zero, the contributions adding up
+/// to the estimate, the observer seeing the same records, and the same stream giving the same
+/// records again.
+#[test]
+fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
+    use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
+    use lumis::integrators::balance::Balance;
+    use lumis::integrators::estimator::ShadingPoint;
+    use lumis::integrators::phase::{Observer, Phase, PhaseRole};
+    use lumis::integrators::weighting::PerSample;
+
+    /// Counts what it sees.
+    #[derive(Default)]
+    struct Seen {
+        records: usize,
+        black: usize,
+    }
+    impl Observer for Seen {
+        fn observe(&mut self, phase: &Phase, contributions: &[lumis::math::Rgb]) {
+            assert_eq!(phase.records.len(), contributions.len());
+            self.records += phase.records.len();
+            self.black += phase.records.iter().filter(|r| r.is_black()).count();
+        }
+    }
+
+    let loaded = common::load(&repo_path("scenes/veach.ron"), &[]).unwrap();
+    let scene = &loaded.scene;
+    let pixel = glam::UVec2::new(160, 150);
+    let ray = lumis::integrator::CameraSample::new(scene, pixel, 0).ray;
+    let sp = ShadingPoint::new(scene, scene.intersect(&ray).unwrap(), -ray.direction);
+    let split = SampleSplit::new(0.3, 37);
+    let mut buffers = PhaseBuffers::default();
+    let draw = |buffers: &mut PhaseBuffers, light: usize| {
+        let mut sampler = lumis::sampler::Sampler::new(5, 6, 7);
+        let mut seen = Seen::default();
+        let mut sampling = LightSampling::new(scene, &sp, light, pixel, 37, &mut sampler, buffers);
+        let value = sampling.phase(split, PhaseRole::ESTIMATE, &PerSample(Balance), &mut seen);
+        let (phase, contributions) = sampling.last_phase().unwrap();
+        assert_eq!(phase.split, split);
+        assert_eq!(phase.bsdf_records().len(), split.n_bsdf as usize);
+        assert_eq!(phase.light_records().len(), split.n_light as usize);
+        assert_eq!(seen.records, split.total() as usize);
+        let mut sum = lumis::math::Rgb::ZERO;
+        for (r, c) in phase.records.iter().zip(contributions) {
+            if r.is_black() {
+                assert_eq!(*c, lumis::math::Rgb::ZERO);
+            }
+            sum += *c;
+        }
+        assert_eq!(sum, value);
+        (phase.records.to_vec(), value, seen.black)
+    };
+    let mut lit = 0;
+    for light in 0..scene.emitters.len() {
+        let (records, value, black) = draw(&mut buffers, light);
+        assert_eq!(draw(&mut buffers, light).0, records, "not deterministic");
+        lit += usize::from(value.max_element() > 0.0 && black < records.len());
+    }
+    assert!(lit >= 2, "only {lit} lights reach the plate");
+}

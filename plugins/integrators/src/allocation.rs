@@ -76,6 +76,20 @@ pub struct PhaseBuffers {
     contributions: Vec<Rgb>,
 }
 
+thread_local! {
+    static PHASE_BUFFERS: std::cell::RefCell<PhaseBuffers> =
+        std::cell::RefCell::new(PhaseBuffers::default());
+}
+
+impl PhaseBuffers {
+    /// Runs `f` with this thread's buffers, the ones every MIS integrator reuses for every
+    /// light of every camera sample (also for pilot passes that sample lights themselves). Not
+    /// re-entrant: `f` must not call it again.
+    pub fn with_thread_local<R>(f: impl FnOnce(&mut PhaseBuffers) -> R) -> R {
+        PHASE_BUFFERS.with_borrow_mut(f)
+    }
+}
+
 /// The sampling of one non-delta light at one shading point: draws phases for an
 /// [`Allocation`].
 pub struct LightSampling<'a> {
@@ -88,6 +102,8 @@ pub struct LightSampling<'a> {
     buffers: &'a mut PhaseBuffers,
     /// The AOV statistics of this light, when an AOV asks for them.
     tally: Option<&'a mut LightTally>,
+    /// The split of the last phase drawn, whose records are still in `buffers`.
+    last_split: Option<SampleSplit>,
 }
 
 impl<'a> LightSampling<'a> {
@@ -111,6 +127,7 @@ impl<'a> LightSampling<'a> {
             sampler,
             buffers,
             tally: None,
+            last_split: None,
         }
     }
 
@@ -176,7 +193,22 @@ impl<'a> LightSampling<'a> {
         if let Some(tally) = self.tally.as_deref_mut() {
             tally.observe(&phase, contributions, role);
         }
+        self.last_split = Some(split);
         value
+    }
+
+    /// The last phase drawn and its records' contributions, until the next phase replaces
+    /// them: for an allocation that needs a pilot's samples themselves (e.g. to minimise a
+    /// function of all of them), not only what an observer accumulated.
+    pub fn last_phase(&self) -> Option<(Phase<'_>, &[Rgb])> {
+        let split = self.last_split?;
+        let phase = Phase {
+            pixel: self.pixel,
+            light: self.light,
+            split,
+            records: &self.buffers.records,
+        };
+        Some((phase, &self.buffers.contributions))
     }
 }
 

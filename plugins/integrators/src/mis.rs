@@ -75,12 +75,6 @@ impl<A: Allocation + 'static, W: Weighting + 'static> MisIntegrator<A, W> {
     }
 }
 
-thread_local! {
-    /// Each thread's phase buffers, reused for every light of every camera sample.
-    static PHASE_BUFFERS: std::cell::RefCell<PhaseBuffers> =
-        std::cell::RefCell::new(PhaseBuffers::default());
-}
-
 impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
     fn aovs(&self, scene: &Scene) -> Vec<Aov> {
         self.aovs.declare(scene)
@@ -102,7 +96,7 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
         };
         let mut radiance = emitted(scene, &hit, ray.direction);
         let sp = ShadingPoint::new(scene, hit, -ray.direction);
-        PHASE_BUFFERS.with_borrow_mut(|buffers| {
+        PhaseBuffers::with_thread_local(|buffers| {
             for (light, emitter) in scene.emitters.iter().enumerate() {
                 if emitter.is_delta() {
                     radiance += estimate_delta_light(scene, &sp, light, &mut sample.sampler);
