@@ -286,7 +286,8 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         bar
     };
-    // Ctrl-C stops the render at the next tile; what is finished is written, marked partial.
+    // Ctrl-C stops the render at the next camera sample; the finished pixels are written, marked
+    // partial.
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
@@ -309,6 +310,10 @@ fn render(args: RenderArgs) -> Result<()> {
         ("seed".into(), loaded.scene.seed.to_string()),
         ("partial".into(), stats.partial().to_string()),
         (
+            "pixels".into(),
+            format!("{} of {}", stats.pixels_done, stats.pixels_total),
+        ),
+        (
             "tiles".into(),
             format!("{} of {}", stats.tiles_done, stats.tiles_total),
         ),
@@ -330,9 +335,9 @@ fn render(args: RenderArgs) -> Result<()> {
 
     if stats.partial() {
         eprintln!(
-            "interrupted: wrote a partial image ({} of {} tiles) to {}",
-            stats.tiles_done,
-            stats.tiles_total,
+            "interrupted: wrote a partial image ({} of {} pixels) to {}",
+            stats.pixels_done,
+            stats.pixels_total,
             exr_path.display()
         );
         std::process::exit(130);

@@ -10,7 +10,7 @@ use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
-use crate::film::Window;
+use crate::output::Window;
 use std::path::PathBuf;
 use std::sync::Arc;
 
