@@ -9,6 +9,7 @@ pub use lumis_core::*;
 pub use lumis_emitters as emitters;
 pub use lumis_integrators as integrators;
 
+pub mod import;
 pub mod study;
 
 /// Makes sure every built-in plugin crate is linked into the final program: a crate none of
