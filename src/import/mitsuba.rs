@@ -346,7 +346,9 @@ impl Converter {
                             DMat4::from_cols(r(0), r(1), r(2), DVec4::W).transpose()
                         }
                         k => {
-                            return Err(format!("line {at}: a matrix has 9 or 16 numbers, not {k}"));
+                            return Err(format!(
+                                "line {at}: a matrix has 9 or 16 numbers, not {k}"
+                            ));
                         }
                     }
                 }
