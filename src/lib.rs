@@ -48,6 +48,25 @@ pub mod fuzzing {
         crate::scene::gltf::load_bytes(data, Path::new("/nonexistent"), None).is_ok()
     }
 
+    /// Imports a Wavefront OBJ file from its bytes.
+    pub fn obj(data: &[u8]) -> bool {
+        crate::scene::obj::parse(data, None).is_ok()
+    }
+
+    /// Imports a PLY file from its bytes.
+    pub fn ply(data: &[u8]) -> bool {
+        crate::scene::ply::parse(data).is_ok()
+    }
+
+    /// Converts a Mitsuba 3 XML scene from its bytes (accepted: converted without problems).
+    pub fn mitsuba_xml(data: &[u8]) -> bool {
+        let Ok(text) = std::str::from_utf8(data) else {
+            return false;
+        };
+        let dir = Path::new("/nonexistent");
+        crate::import::convert(text, dir, dir, &[]).is_ok_and(|c| c.problems.is_empty())
+    }
+
     /// Decodes an EXR image from its bytes.
     pub fn exr(data: &[u8]) -> bool {
         crate::image_io::decode_exr_rgb(data).is_ok()

@@ -218,18 +218,19 @@ fn corner(
     texcoords: usize,
     normals: usize,
 ) -> Result<Corner, String> {
-    let mut parts = token.split('/');
-    let position = resolve(parts.next().unwrap_or_default(), positions, "vertex", token)?;
-    if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
+    let mut split = token.split('/');
+    let parts = [split.next(), split.next(), split.next()];
+    if split.next().is_some() {
+        return Err(format!("face vertex `{token}` has more than three indices"));
+    }
+    let position = resolve(parts[0].unwrap_or_default(), positions, "vertex", token)?;
+    if let Some(t) = parts[1].filter(|t| !t.is_empty()) {
         resolve(t, texcoords, "texture coordinate", token)?;
     }
-    let normal = match parts.next().filter(|n| !n.is_empty()) {
+    let normal = match parts[2].filter(|n| !n.is_empty()) {
         Some(n) => Some(resolve(n, normals, "normal", token)?),
         None => None,
     };
-    if parts.next().is_some() {
-        return Err(format!("face vertex `{token}` has more than three indices"));
-    }
     Ok(Corner { position, normal })
 }
 
