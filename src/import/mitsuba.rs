@@ -86,6 +86,9 @@ fn line(node: &Node) -> u32 {
     node.document().text_pos_at(node.range().start).row
 }
 
+/// A film's crop window: x, y, width, height in pixels.
+type Crop = (u32, u32, u32, u32);
+
 /// A property value as written in the XML.
 #[derive(Clone, Debug)]
 enum Value {
@@ -570,8 +573,7 @@ impl Converter {
     }
 
     /// Width, height and crop window of an `hdrfilm`.
-    #[allow(clippy::type_complexity)]
-    fn film(&mut self, node: &Node) -> Result<(u32, u32, Option<(u32, u32, u32, u32)>), String> {
+    fn film(&mut self, node: &Node) -> Result<(u32, u32, Option<Crop>), String> {
         let at = line(node);
         let mut p = self.properties(node)?;
         if p.kind != "hdrfilm" {
@@ -582,10 +584,7 @@ impl Converter {
         }
         let mut int = |name: &str, default: i64| -> Result<Option<i64>, String> {
             match p.values.remove(name) {
-                Some((Value::Int(n), l)) if n >= 0 && n <= 65536 => {
-                    let _ = l;
-                    Ok(Some(n))
-                }
+                Some((Value::Int(n), _)) if (0..=65536).contains(&n) => Ok(Some(n)),
                 Some((_, l)) => Err(format!(
                     "line {l}: `{name}` must be an integer in 0..=65536"
                 )),

@@ -154,7 +154,12 @@ fn place(format: Format, line: usize, offset: usize) -> String {
 
 /// Parses a whole PLY file.
 pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
-    let (format, elements, body, header_lines) = parse_header(bytes)?;
+    let Header {
+        format,
+        elements,
+        body,
+        lines: header_lines,
+    } = parse_header(bytes)?;
     let header_len = bytes.len() - body.len();
     let mut reader = Reader {
         format,
@@ -296,8 +301,17 @@ pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
     })
 }
 
-/// The format, the elements, the bytes after `end_header`, and the header's line count.
-fn parse_header(bytes: &[u8]) -> Result<(Format, Vec<Element>, &[u8], usize), String> {
+/// What the header declares, and where the body starts.
+struct Header<'a> {
+    format: Format,
+    elements: Vec<Element>,
+    /// The bytes after `end_header`.
+    body: &'a [u8],
+    /// The header's line count.
+    lines: usize,
+}
+
+fn parse_header(bytes: &[u8]) -> Result<Header<'_>, String> {
     let mut rest = bytes;
     let mut format = None;
     let mut elements: Vec<Element> = Vec::new();
@@ -365,7 +379,12 @@ fn parse_header(bytes: &[u8]) -> Result<(Format, Vec<Element>, &[u8], usize), St
         }
     }
     let format = format.ok_or("the header has no `format` line")?;
-    Ok((format, elements, rest, number))
+    Ok(Header {
+        format,
+        elements,
+        body: rest,
+        lines: number,
+    })
 }
 
 fn push_property(elements: &mut [Element], name: &str, kind: Kind) -> Result<(), String> {
