@@ -9,9 +9,10 @@
 //! - `diffuse` (rgb, default (0, 0, 0), in [0, 1]): albedo of the diffuse base layer.
 //! - `masking` (choice, default `height_correlated`, or `separable`): the Smith masking-shadowing
 //!   term G₂(ωo, ωi). `height_correlated` is 1 / (1 + Λ(ωo) + Λ(ωi)) (Heitz 2014, the more
-//!   accurate); `separable` is G₁(ωo) G₁(ωi) = 1 / ((1 + Λ(ωo))(1 + Λ(ωi))), as Mitsuba 3's
-//!   `roughconductor` and pbrt-v4's `conductor` use. They agree at normal incidence and differ by
-//!   the factor Λ(ωo)Λ(ωi) / ((1 + Λ(ωo))(1 + Λ(ωi))) (relative) toward grazing angles.
+//!   accurate, and pbrt-v3's and pbrt-v4's); `separable` is G₁(ωo) G₁(ωi) =
+//!   1 / ((1 + Λ(ωo))(1 + Λ(ωi))), as Mitsuba 3's `roughconductor` uses. They agree at normal
+//!   incidence; the separable term is smaller by the factor (1 + Λ(ωo) + Λ(ωi)) /
+//!   ((1 + Λ(ωo))(1 + Λ(ωi))) toward grazing angles.
 //!
 //! The base is Ashikhmin and Shirley's (2000) energy-conserving diffuse term, reciprocal and
 //! weighted by (1 − F0) so that specular plus diffuse never reflect more than arrives.
@@ -40,7 +41,7 @@ pub struct Glossy {
 pub enum Masking {
     /// 1 / (1 + Λ(ωo) + Λ(ωi)).
     HeightCorrelated,
-    /// G₁(ωo) G₁(ωi), Mitsuba's and pbrt's.
+    /// G₁(ωo) G₁(ωi), Mitsuba 3's.
     Separable,
 }
 
@@ -225,7 +226,7 @@ static PARAMS: &[ParamSpec] = &[
             default: "height_correlated",
         },
         unit: "",
-        description: "Smith masking-shadowing G2: height-correlated, or separable G1·G1 (Mitsuba's and pbrt's)",
+        description: "Smith masking-shadowing G2: height-correlated (as pbrt), or separable G1·G1 (as Mitsuba 3)",
     },
 ];
 

@@ -1,4 +1,4 @@
-//! `glossy`'s `masking` parameter: the separable Smith term (Mitsuba's and pbrt's) is sampled
+//! `glossy`'s `masking` parameter: the separable Smith term (Mitsuba 3's) is sampled
 //! consistently (chi-square of `sample` against `pdf`, weight = eval / pdf) and differs from the
 //! height-correlated term by exactly the factor the formulas give.
 
