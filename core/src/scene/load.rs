@@ -339,7 +339,7 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
         "disk" => &["segments", "flip_normals"],
         "rectangle" | "cube" => &["flip_normals"],
         other => {
-            const KINDS: [&str; 7] = ["gltf", "obj", "ply", "rectangle", "cube", "disk", "sphere"];
+            const KINDS: [&str; 7] = ["gltf", "rectangle", "cube", "disk", "sphere", "obj", "ply"];
             return Err(scene_err(format!(
                 "unknown shape type `{other}`{}; known shape types: {}",
                 did_you_mean(other, KINDS),
