@@ -14,6 +14,7 @@
 
 use super::shapes::Mesh;
 use glam::Vec3;
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -162,12 +163,16 @@ pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
 }
 
 /// Lines numbered from 1, with `\` continuations joined (the number is the first line's), CR
-/// stripped.
-fn logical_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, Vec<u8>)> + '_ {
-    let mut physical = bytes.split(|&b| b == b'\n').enumerate().peekable();
+/// stripped; borrowed unless joined.
+fn logical_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, Cow<'_, [u8]>)> + '_ {
+    let mut physical = bytes.split(|&b| b == b'\n').enumerate();
     std::iter::from_fn(move || {
         let (first, line) = physical.next()?;
-        let mut joined = line.strip_suffix(b"\r").unwrap_or(line).to_vec();
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        if line.last() != Some(&b'\\') {
+            return Some((first + 1, Cow::Borrowed(line)));
+        }
+        let mut joined = line.to_vec();
         while joined.last() == Some(&b'\\') {
             joined.pop();
             joined.push(b' ');
@@ -176,7 +181,7 @@ fn logical_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, Vec<u8>)> + '_ {
             };
             joined.extend_from_slice(next.strip_suffix(b"\r").unwrap_or(next));
         }
-        Some((first + 1, joined))
+        Some((first + 1, Cow::Owned(joined)))
     })
 }
 
