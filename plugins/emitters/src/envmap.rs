@@ -216,6 +216,7 @@ impl EnvironmentMap {
     }
 
     /// World direction to map coordinates (u, v) in [0, 1]², and sin θ.
+    #[inline]
     fn to_uv(&self, d: Vec3) -> (Vec2, f32) {
         let (c, s) = self.rotation;
         // Undo the rotation about +y.
@@ -231,6 +232,7 @@ impl EnvironmentMap {
     }
 
     /// Map coordinates to a world direction.
+    #[inline]
     fn to_direction(&self, uv: Vec2) -> Vec3 {
         let phi = uv.x * TAU - PI;
         let theta = uv.y * PI;
@@ -245,15 +247,14 @@ impl EnvironmentMap {
     }
 
     /// Solid-angle density of the direction at map coordinates `uv`.
+    #[inline]
     fn pdf_at(&self, uv: Vec2, sin_theta: f32) -> f32 {
         if sin_theta <= 0.0 {
             return 0.0;
         }
         let pdf_uv = match &self.sampling {
             Sampling::Nearest(Some(d)) => d.pdf(uv),
-            Sampling::Bilinear(Some(warp)) => {
-                self.corners(uv).lerp(|i| warp.weights[i]) / warp.integral
-            }
+            Sampling::Bilinear(Some(warp)) => self.bilinear_pdf_uv(warp, uv),
             Sampling::Nearest(None) | Sampling::Bilinear(None) => return 0.0,
         };
         let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
@@ -285,6 +286,7 @@ impl EnvironmentMap {
         }
     }
 
+    #[inline]
     fn lookup(&self, uv: Vec2) -> Rgb {
         match self.sampling {
             Sampling::Nearest(_) => {
@@ -292,7 +294,7 @@ impl EnvironmentMap {
                 let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
                 self.pixels[y * self.width + x]
             }
-            Sampling::Bilinear(_) => self.corners(uv).lerp(|i| self.pixels[i]),
+            Sampling::Bilinear(_) => self.bilinear_lookup(uv),
         }
     }
 
@@ -301,28 +303,42 @@ impl EnvironmentMap {
     fn sample_uv(&self, u: Vec2) -> Option<Vec2> {
         match &self.sampling {
             Sampling::Nearest(d) => Some(d.as_ref()?.sample(u).0),
-            Sampling::Bilinear(warp) => {
-                let warp = warp.as_ref()?;
-                let (col, row, within, _) = warp.patches.sample_cell(u);
-                let (w, h) = (self.width, self.height);
-                let col1 = if col + 1 == w { 0 } else { col + 1 };
-                let weight = |i: usize, j: usize| warp.weights[j * w + i];
-                let (w00, w10) = (weight(col, row), weight(col1, row));
-                let (w01, w11) = (weight(col, row + 1), weight(col1, row + 1));
-                // The marginal in y is linear, then the conditional in x given y.
-                let fy = sample_linear(within.y, w00 + w10, w01 + w11);
-                let fx = sample_linear(
-                    within.x,
-                    w00 * (1.0 - fy) + w01 * fy,
-                    w10 * (1.0 - fy) + w11 * fy,
-                );
-                let mut x = (col as f32 + fx + 0.5) / w as f32;
-                if x >= 1.0 {
-                    x -= 1.0;
-                }
-                Some(Vec2::new(x, (row as f32 + fy) / (h - 1) as f32))
-            }
+            Sampling::Bilinear(warp) => Some(self.bilinear_sample_uv(warp.as_ref()?, u)),
         }
+    }
+
+    // The bilinear paths stay out of line, so that the nearest ones keep their size.
+
+    #[inline(never)]
+    fn bilinear_pdf_uv(&self, warp: &BilinearWarp, uv: Vec2) -> f32 {
+        self.corners(uv).lerp(|i| warp.weights[i]) / warp.integral
+    }
+
+    #[inline(never)]
+    fn bilinear_lookup(&self, uv: Vec2) -> Rgb {
+        self.corners(uv).lerp(|i| self.pixels[i])
+    }
+
+    #[inline(never)]
+    fn bilinear_sample_uv(&self, warp: &BilinearWarp, u: Vec2) -> Vec2 {
+        let (col, row, within, _) = warp.patches.sample_cell(u);
+        let (w, h) = (self.width, self.height);
+        let col1 = if col + 1 == w { 0 } else { col + 1 };
+        let weight = |i: usize, j: usize| warp.weights[j * w + i];
+        let (w00, w10) = (weight(col, row), weight(col1, row));
+        let (w01, w11) = (weight(col, row + 1), weight(col1, row + 1));
+        // The marginal in y is linear, then the conditional in x given y.
+        let fy = sample_linear(within.y, w00 + w10, w01 + w11);
+        let fx = sample_linear(
+            within.x,
+            w00 * (1.0 - fy) + w01 * fy,
+            w10 * (1.0 - fy) + w11 * fy,
+        );
+        let mut x = (col as f32 + fx + 0.5) / w as f32;
+        if x >= 1.0 {
+            x -= 1.0;
+        }
+        Vec2::new(x, (row as f32 + fy) / (h - 1) as f32)
     }
 }
 
