@@ -14,6 +14,7 @@ pub mod image_io;
 pub mod integrator;
 pub mod limits;
 pub mod math;
+pub mod output;
 pub mod params;
 pub mod registry;
 pub mod render;

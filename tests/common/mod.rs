@@ -50,6 +50,17 @@ pub fn load(
     lumis::scene::load_scene(path, &overrides)
 }
 
+/// The names of every registered built-in integrator, so that a new one is tested without being
+/// listed anywhere.
+pub fn integrators() -> Vec<&'static str> {
+    use lumis::registry::{IntegratorPlugin, PluginInfo, builtin};
+    lumis::link_plugins();
+    builtin::<IntegratorPlugin>()
+        .iter()
+        .map(|p| p.name())
+        .collect()
+}
+
 /// The example plugin library `lumis-oren-nayar`, which cargo builds with the tests (a
 /// dev-dependency, built with its cdylib beside this test's executable), placed where the
 /// bundled scene `scenes/plugin.ron` looks for it: `target/debug/liblumis_oren_nayar.so` on Linux

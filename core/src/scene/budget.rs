@@ -4,8 +4,8 @@
 
 use super::shapes::ShapeGeometry;
 use crate::accel::BVH_BYTES_PER_PRIMITIVE;
-use crate::film::Window;
 use crate::limits::MemoryEstimate;
+use crate::output::Window;
 
 /// Bytes per pixel and per f32 channel at the peak of a render: the film, and at most one more
 /// copy at a time (the tiles before they are assembled, then the EXR writer's channels).

@@ -3,9 +3,12 @@
 pub mod budget;
 pub mod description;
 pub mod gltf;
+pub mod gltf_scene;
 pub mod light_check;
 pub mod load;
+pub mod obj;
 pub mod overrides;
+pub mod ply;
 pub mod shapes;
 pub mod syntax;
 
@@ -13,7 +16,7 @@ use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
-use crate::film::Window;
+use crate::output::Window;
 use std::path::PathBuf;
 use std::sync::Arc;
 
