@@ -1,6 +1,6 @@
 //! Scale invariance and its limits: a scene (camera, shape, light) scaled as a whole by any
-//! factor from 1e-30 to 1e30, for every shape kind and for glTF meshes scaled by the shape's
-//! transform or by their own node, either renders finite pixels or is refused with a message
+//! factor from 1e-30 to 1e30, for every shape kind (OBJ and PLY meshes included) and for glTF
+//! meshes scaled by the shape's transform or by their own node, either renders finite pixels or is refused with a message
 //! that names the limit it crosses. Within the supported range it renders the same image as at
 //! scale 1: the sampler draws the same numbers, so only rounding at silhouettes can differ.
 
@@ -29,11 +29,29 @@ fn shape(kind: &str) -> String {
         "gltf" => r#"(type: "gltf", file: "BUNNY", bsdf: "white", transform: (scale: ({s6}, {s6}, {s6})))"#
             .into(),
         "gltf_node" => r#"(type: "gltf", file: "node.gltf", bsdf: "white")"#.into(),
+        "obj" | "ply" => format!(
+            r#"(type: "{kind}", file: "quad.{kind}", bsdf: "white", transform: (scale: ({{s}}, {{s}}, {{s}}), rotate: [(axis: (1, 0, 0), angle: -110)]))"#
+        ),
         _ => unreachable!(),
     }
 }
 
-const KINDS: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "gltf", "gltf_node"];
+const KINDS: [&str; 8] = [
+    "rectangle",
+    "cube",
+    "disk",
+    "sphere",
+    "gltf",
+    "gltf_node",
+    "obj",
+    "ply",
+];
+
+/// The unit quad of the rectangle, as an OBJ and as an ASCII PLY file.
+const QUAD_OBJ: &str = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n";
+const QUAD_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n\
+    property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+    end_header\n-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n4 0 1 2 3\n";
 
 /// The scene of `kind` scaled by `s`, written in `dir` (with the glTF whose node scales by `s`).
 fn scene(dir: &Path, kind: &str, s: f64) -> std::path::PathBuf {
@@ -77,6 +95,8 @@ fn scene(dir: &Path, kind: &str, s: f64) -> std::path::PathBuf {
         data = base64(&quad),
     );
     std::fs::write(dir.join("node.gltf"), gltf).unwrap();
+    std::fs::write(dir.join("quad.obj"), QUAD_OBJ).unwrap();
+    std::fs::write(dir.join("quad.ply"), QUAD_PLY).unwrap();
     let path = dir.join(format!("{kind}.ron"));
     std::fs::write(&path, text).unwrap();
     path

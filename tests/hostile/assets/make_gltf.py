@@ -70,3 +70,24 @@ write("infinite_bounds.gltf", None, text.replace('"max": [\n    1,\n    1,\n    
       .replace('"min": [\n    -1,\n    -1,\n    0\n   ]', '"min": [null, null, null]'))
 write("positions_inf.gltf", gltf([(0, 0, 0), (float("inf"), 0, 0), (0, 1, 0)], [0, 1, 2],
                                  pos_min=[0, 0, 0], pos_max=[1, 1, 0]))
+
+
+def with_camera_and_light(doc, camera_translation, yfov, intensity):
+    """`doc` plus a camera node `eye` (looking down −z) and a KHR_lights_punctual point light."""
+    doc["extensionsUsed"] = ["KHR_lights_punctual"]
+    doc["extensions"] = {"KHR_lights_punctual": {"lights": [
+        {"type": "point", "color": [1, 1, 1], "intensity": intensity}]}}
+    doc["cameras"] = [{"type": "perspective",
+                       "perspective": {"yfov": yfov, "znear": 0.01, "aspectRatio": 1.0}}]
+    doc["nodes"] += [{"name": "eye", "camera": 0, "translation": camera_translation},
+                     {"name": "lamp", "translation": [0, 0, 2],
+                      "extensions": {"KHR_lights_punctual": {"light": 0}}}]
+    doc["scenes"] = [{"nodes": [0, 1, 2]}]
+    return doc
+
+
+write("camera_light_ok.gltf", with_camera_and_light(gltf(QUAD, QUAD_INDICES), [0, 0, 5], 0.7, 10))
+write("camera_far.gltf", with_camera_and_light(gltf(QUAD, QUAD_INDICES), [0, 0, 1e30], 0.7, 10))
+write("camera_yfov_4.gltf", with_camera_and_light(gltf(QUAD, QUAD_INDICES), [0, 0, 5], 4.0, 10))
+write("light_intensity_1e30.gltf",
+      with_camera_and_light(gltf(QUAD, QUAD_INDICES), [0, 0, 5], 0.7, 1e30))
