@@ -26,7 +26,7 @@ use std::time::Duration;
 const BATCH: usize = 4096;
 
 fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
 }
 
 /// A 1000 × 500-quad height field (10⁶ triangles) with smooth bumps: a procedural stand-in for

@@ -256,3 +256,43 @@ fn alpha_at_both_clamp_bounds() {
         }
     }
 }
+
+/// The limits of docs/robustness.md, with every integrator and AOV: the largest emission
+/// accepted (1e12 × scale 1e6), and a whole scene at 1e-9 and at 1e10 of its size (the BVH
+/// traverses in a scaled space: unscaled, scenes under 1e-4 across were black). The answer,
+/// ρ L (r/d)², does not depend on the scale.
+#[test]
+fn the_largest_emission_and_scenes_at_the_ends_of_the_coordinate_range() {
+    let (r, d) = (0.25, 2.0);
+    for (scale, radiance, emitter_scale) in [(1.0, 1e12, 1e6), (1e-9, 2.0, 1.0), (1e10, 2.0, 1.0)] {
+        let text = format!(
+            r#"Scene(
+    camera: (position: ({cx:e}, {cy:e}, {cz:e}), target: (0, 0, 0), fov: 0.01),
+    film: (width: 16, height: 16),
+    sampler: (spp: 2, seed: 9),
+    integrator: (type: "balance", samples: 64),
+    bsdfs: {{ "floor": {DIFFUSE}, "black": (type: "diffuse", reflectance: 0) }},
+    shapes: [
+        (type: "rectangle", bsdf: "floor", transform: (scale: ({f:e}, {f:e}, {s:e}), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        (type: "sphere", bsdf: "black", center: (0, {h:e}, 0), radius: {rr:e}, emitter: (type: "area", radiance: {radiance:e}, scale: {emitter_scale:e})),
+    ],
+)"#,
+            cx = 0.3 * scale,
+            cy = scale,
+            cz = -scale,
+            f = 50.0 * scale,
+            s = scale,
+            h = d * scale,
+            rr = r * scale,
+        );
+        let (_dir, path) = scene_file("limits.ron", &text);
+        let results = render_all(&path, None);
+        let expected = 0.5 * radiance * emitter_scale * (r / d) * (r / d);
+        assert_near(
+            &results,
+            expected,
+            &format!("scale {scale:e}, emission {radiance:e} × {emitter_scale:e}"),
+            &[],
+        );
+    }
+}

@@ -31,10 +31,24 @@ impl Camera {
                 "camera `fov` must be in (0, 180) degrees, found {fov_y}"
             ));
         }
-        if !position.is_finite() || !target.is_finite() || !up.is_finite() {
-            return Err("camera position, target and up must be finite".into());
+        let max = crate::limits::MAX_COORDINATE;
+        for (name, v) in [("position", position), ("target", target), ("up", up)] {
+            if !v.is_finite() {
+                return Err(format!(
+                    "camera `{name}` must be finite, found {}",
+                    crate::limits::fmt_f32s(&v.to_array())
+                ));
+            }
+            if v.abs().max_element() > max {
+                return Err(format!(
+                    "camera `{name}` {} is beyond the supported coordinates, ±{}",
+                    crate::limits::fmt_f32s(&v.to_array()),
+                    crate::limits::fmt_f32(max)
+                ));
+            }
         }
-        let forward = (target - position).normalize_or_zero();
+        // Scaled before normalising: a camera 1e-25 from its target still has a direction.
+        let forward = crate::scene::shapes::unit_normal(target - position);
         if forward == Vec3::ZERO {
             return Err("camera `position` and `target` must differ".into());
         }
@@ -89,5 +103,9 @@ mod tests {
         assert!(Camera::new(Vec3::ZERO, Vec3::ZERO, Vec3::Y, 40.0, 1, 1).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0, 1, 1).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 180.0, 1, 1).is_err());
+        let e = Camera::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Z, Vec3::Y, 40.0, 1, 1);
+        assert!(e.unwrap_err().contains("camera `position` must be finite"));
+        let e = Camera::new(Vec3::ZERO, Vec3::splat(1e13), Vec3::Y, 40.0, 1, 1);
+        assert!(e.unwrap_err().contains("camera `target`"));
     }
 }

@@ -79,8 +79,11 @@ pub fn load_library(path: &Path) -> Result<(), String> {
     }
     // SAFETY: loading runs the library's initialisers; a lumis plugin library has none beyond
     // Rust's. This is the trust a user gives a plugin by naming it in a scene.
-    let library = unsafe { libloading::Library::new(&canonical) }
-        .map_err(|e| format!("cannot load plugin library: {e}"))?;
+    let library = unsafe { libloading::Library::new(&canonical) }.map_err(|e| {
+        // libloading's message is "dlopen failed"; the loader's reason is its source.
+        let reason = std::error::Error::source(&e).map_or(e.to_string(), |s| s.to_string());
+        format!("cannot load plugin library (not a shared library for this system?): {reason}")
+    })?;
     // SAFETY: the symbol, if present, is the static declared by `declare_plugin_library!`; only
     // its C-layout header is read before the versions are known to match.
     let declaration: &'static PluginDeclaration = unsafe {

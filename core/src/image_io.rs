@@ -12,6 +12,7 @@ use exr::prelude::{
 };
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 /// An output file could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -28,36 +29,111 @@ fn output_error(path: &Path, reason: impl ToString) -> OutputError {
     }
 }
 
-/// Writes through `write` into a temporary file beside `path`, then renames it to `path`
-/// (creating the directory if needed).
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
-) -> Result<(), OutputError> {
-    let dir = match path.parent() {
+/// Temporary files being written, so that an exit that skips destructors (a second Ctrl-C)
+/// can remove them first ([`remove_temporaries`]).
+static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn forget_temporary(path: &Path) {
+    if let Ok(mut list) = TEMPORARIES.lock() {
+        list.retain(|p| p != path);
+    }
+}
+
+/// Removes every temporary output file still being written. For a program about to exit
+/// without running destructors.
+pub fn remove_temporaries() {
+    if let Ok(list) = TEMPORARIES.lock() {
+        for path in list.iter() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The directory an output file goes to.
+fn output_dir(path: &Path) -> &Path {
+    match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
-    };
+    }
+}
+
+/// Checks, before a long computation, that `path` can be written: it is not a directory, and
+/// its directory exists (or is created) and accepts a new file.
+pub fn check_writable(path: &Path) -> Result<(), OutputError> {
+    if path.is_dir() {
+        return Err(output_error(path, "it is a directory"));
+    }
+    let dir = output_dir(path);
     std::fs::create_dir_all(dir).map_err(|e| output_error(path, e))?;
-    let mut tmp = tempfile::Builder::new()
+    tempfile::Builder::new()
         .prefix(".lumis-")
         .suffix(".tmp")
         .tempfile_in(dir)
-        .map_err(|e| output_error(path, e))?;
+        .map(drop)
+        .map_err(|e| output_error(path, e))
+}
+
+/// Writes what a closure writes to a file.
+pub type FileWriter<'a> = Box<dyn FnOnce(&mut std::fs::File) -> Result<(), String> + 'a>;
+
+/// Writes several files as one: each into a temporary file beside its target (creating the
+/// directory if needed); only when every one is complete are they renamed into place. A failure
+/// before the renames leaves every target as it was and no temporary behind (an EXR is never
+/// left without its PNG because the PNG's path was a directory).
+pub fn write_all_atomically(files: Vec<(&Path, FileWriter<'_>)>) -> Result<(), OutputError> {
+    for (path, _) in &files {
+        if path.is_dir() {
+            return Err(output_error(path, "it is a directory"));
+        }
+    }
+    let mut written = Vec::new();
+    for (path, write) in files {
+        let dir = output_dir(path);
+        std::fs::create_dir_all(dir).map_err(|e| output_error(path, e))?;
+        let mut tmp = tempfile::Builder::new()
+            .prefix(".lumis-")
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(|e| output_error(path, e))?;
+        if let Ok(mut list) = TEMPORARIES.lock() {
+            list.push(tmp.path().to_path_buf());
+        }
+        let result = write_temporary(&mut tmp, write).map_err(|e| output_error(path, e));
+        if let Err(e) = result {
+            forget_temporary(tmp.path());
+            return Err(e);
+        }
+        written.push((path, tmp));
+    }
+    for (path, tmp) in written {
+        let temporary = tmp.path().to_path_buf();
+        let result = tmp.persist(path).map_err(|e| output_error(path, e.error));
+        forget_temporary(&temporary);
+        result?;
+    }
+    Ok(())
+}
+
+fn write_temporary(tmp: &mut tempfile::NamedTempFile, write: FileWriter<'_>) -> Result<(), String> {
     // The temporary file is private (0600); the output should be as readable as any file.
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
         tmp.as_file()
             .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| output_error(path, e))?;
+            .map_err(|e| e.to_string())?;
     }
-    write(tmp.as_file_mut()).map_err(|e| output_error(path, e))?;
-    tmp.as_file_mut()
-        .flush()
-        .map_err(|e| output_error(path, e))?;
-    tmp.persist(path).map_err(|e| output_error(path, e.error))?;
-    Ok(())
+    write(tmp.as_file_mut())?;
+    tmp.as_file_mut().flush().map_err(|e| e.to_string())
+}
+
+/// Writes through `write` into a temporary file beside `path`, then renames it to `path`
+/// (creating the directory if needed).
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
+) -> Result<(), OutputError> {
+    write_all_atomically(vec![(path, Box::new(write))])
 }
 
 /// Key–value pairs stored in the EXR header as the text attribute `lumis`, one `key=value` a line
@@ -67,6 +143,20 @@ pub type Metadata = Vec<(String, String)>;
 /// Writes colour as channels R, G, B and each AOV as `aov.channel`, in one EXR part whose data
 /// window is the rendered window of the full film.
 pub fn write_exr(film: &Film, path: &Path, metadata: &Metadata) -> Result<(), OutputError> {
+    write_atomically(path, exr_writer(film, metadata))
+}
+
+/// What [`write_exr`] writes, for [`write_all_atomically`].
+pub fn exr_writer<'a>(film: &'a Film, metadata: &'a Metadata) -> FileWriter<'a> {
+    Box::new(move |file| {
+        exr_image(film, metadata)
+            .write()
+            .to_buffered(std::io::BufWriter::new(file))
+            .map_err(|e| e.to_string())
+    })
+}
+
+fn exr_image(film: &Film, metadata: &Metadata) -> Image<Layer<AnyChannels<FlatSamples>>> {
     let size = (film.window.width as usize, film.window.height as usize);
     let mut channels: Vec<AnyChannel<FlatSamples>> = ["R", "G", "B"]
         .iter()
@@ -111,12 +201,7 @@ pub fn write_exr(film: &Film, path: &Path, metadata: &Metadata) -> Result<(), Ou
         (0, 0),
         (film.full_width as usize, film.full_height as usize),
     );
-    write_atomically(path, |file| {
-        image
-            .write()
-            .to_buffered(std::io::BufWriter::new(file))
-            .map_err(|e| e.to_string())
-    })
+    image
 }
 
 /// Writes 8-bit RGB pixels (row-major) as a PNG, atomically.
@@ -126,13 +211,21 @@ pub fn write_rgb8_png(
     height: u32,
     bytes: Vec<u8>,
 ) -> Result<(), OutputError> {
-    let image = image::RgbImage::from_raw(width, height, bytes)
-        .ok_or_else(|| output_error(path, "bad image size"))?;
-    write_atomically(path, |file| {
-        image
-            .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
-            .map_err(|e| e.to_string())
+    write_atomically(path, move |file: &mut std::fs::File| {
+        encode_png(file, width, height, bytes)
     })
+}
+
+fn encode_png(
+    file: &mut std::fs::File,
+    width: u32,
+    height: u32,
+    bytes: Vec<u8>,
+) -> Result<(), String> {
+    let image = image::RgbImage::from_raw(width, height, bytes).ok_or("bad image size")?;
+    image
+        .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
+        .map_err(|e| e.to_string())
 }
 
 /// The sRGB transfer function.
@@ -146,18 +239,25 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 
 /// Writes the colour as an 8-bit sRGB PNG, scaled by 2^exposure and clamped.
 pub fn write_png(film: &Film, path: &Path, exposure: f32) -> Result<(), OutputError> {
-    let (w, h) = (film.window.width, film.window.height);
-    let scale = exposure.exp2();
-    let bytes: Vec<u8> = film
-        .color
-        .iter()
-        .flat_map(|c| c.to_array())
-        .map(|v| {
-            let v = if v.is_finite() { v * scale } else { 0.0 };
-            (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
-        })
-        .collect();
-    write_rgb8_png(path, w, h, bytes)
+    write_atomically(path, png_writer(film, exposure))
+}
+
+/// What [`write_png`] writes, for [`write_all_atomically`].
+pub fn png_writer(film: &Film, exposure: f32) -> FileWriter<'_> {
+    Box::new(move |file| {
+        let (w, h) = (film.window.width, film.window.height);
+        let scale = exposure.exp2();
+        let bytes: Vec<u8> = film
+            .color
+            .iter()
+            .flat_map(|c| c.to_array())
+            .map(|v| {
+                let v = if v.is_finite() { v * scale } else { 0.0 };
+                (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
+            })
+            .collect();
+        encode_png(file, w, h, bytes)
+    })
 }
 
 fn exr_error(path: &Path, e: exr::error::Error) -> String {
@@ -170,20 +270,27 @@ fn exr_error(path: &Path, e: exr::error::Error) -> String {
 /// Writes the first three channels of AOV `aov` as an 8-bit PNG of display colours in [0, 1]
 /// (no tone mapping: such AOVs already hold colours, e.g. the α map).
 pub fn write_aov_png(film: &Film, aov: usize, path: &Path) -> Result<(), OutputError> {
-    let (w, h) = (film.window.width, film.window.height);
-    let channels: Vec<Vec<f32>> = (0..3).map(|c| film.aov_channel(aov, c).collect()).collect();
-    let bytes: Vec<u8> = (0..(w * h) as usize)
-        .flat_map(|i| channels.iter().map(move |ch| ch[i]))
-        .map(|v| {
-            (if v.is_finite() {
-                v.clamp(0.0, 1.0)
-            } else {
-                0.0
-            } * 255.0
-                + 0.5) as u8
-        })
-        .collect();
-    write_rgb8_png(path, w, h, bytes)
+    write_atomically(path, aov_png_writer(film, aov))
+}
+
+/// What [`write_aov_png`] writes, for [`write_all_atomically`].
+pub fn aov_png_writer(film: &Film, aov: usize) -> FileWriter<'_> {
+    Box::new(move |file| {
+        let (w, h) = (film.window.width, film.window.height);
+        let channels: Vec<Vec<f32>> = (0..3).map(|c| film.aov_channel(aov, c).collect()).collect();
+        let bytes: Vec<u8> = (0..(w as usize * h as usize))
+            .flat_map(|i| channels.iter().map(move |ch| ch[i]))
+            .map(|v| {
+                (if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                } * 255.0
+                    + 0.5) as u8
+            })
+            .collect();
+        encode_png(file, w, h, bytes)
+    })
 }
 
 /// An RGB image read from an EXR file, in row order.
@@ -194,10 +301,47 @@ pub struct RgbImage {
     pub pixels: Vec<Rgb>,
 }
 
-/// Reads the first RGB(A) layer of an EXR file; the error names the path and the reason.
+/// Reads the first RGB(A) layer of an EXR radiance map; the error names the path and the
+/// reason. Values above [`MAX_EMISSION`](crate::limits::MAX_EMISSION) are refused (negative
+/// and non-finite values are left to the caller, which reads them as no light).
 pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
     let bytes = std::fs::read(path).map_err(|e| exr_error(path, exr::error::Error::Io(e)))?;
-    decode_exr_rgb(&bytes).map_err(|e| exr_error(path, e))
+    let image = decode_exr_rgb(&bytes).map_err(|e| match e {
+        DecodeError::Exr(e) => exr_error(path, e),
+        DecodeError::Unusable(why) => format!("`{}` cannot be used: {why}", path.display()),
+    })?;
+    let max = crate::limits::MAX_EMISSION;
+    if let Some((i, c)) = image.pixels.iter().enumerate().find_map(|(i, p)| {
+        p.to_array()
+            .into_iter()
+            .find(|&c| c.is_finite() && c > max)
+            .map(|c| (i, c))
+    }) {
+        return Err(format!(
+            "`{}`: pixel ({}, {}) holds {}, above the largest radiance lumis accepts, {}",
+            path.display(),
+            i % image.width.max(1),
+            i / image.width.max(1),
+            crate::limits::fmt_f32(c),
+            crate::limits::fmt_f32(max)
+        ));
+    }
+    Ok(image)
+}
+
+/// Why EXR data gave no RGB image.
+#[derive(Debug)]
+pub enum DecodeError {
+    /// Not a valid EXR (the decoder's reason).
+    Exr(exr::error::Error),
+    /// A valid EXR lumis cannot use: no R, G and B channels, or more pixels than it reads.
+    Unusable(String),
+}
+
+impl From<exr::error::Error> for DecodeError {
+    fn from(e: exr::error::Error) -> Self {
+        DecodeError::Exr(e)
+    }
 }
 
 /// The largest image (in pixels) an EXR may declare: 2²⁷, a 16384 × 8192 environment map. The
@@ -206,8 +350,31 @@ pub fn read_exr_rgb(path: &Path) -> Result<RgbImage, String> {
 pub const MAX_EXR_PIXELS: usize = 1 << 27;
 
 /// Decodes the first RGB(A) layer of EXR data held in memory; never panics on bad data.
-pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
+pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, DecodeError> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)?;
+    let has_rgb = |h: &exr::meta::header::Header| {
+        ["R", "G", "B"].iter().all(|name| {
+            h.channels
+                .list
+                .iter()
+                .any(|c| c.name.eq_case_insensitive(name))
+        })
+    };
+    if !meta.headers.iter().any(has_rgb) {
+        let found: Vec<String> = meta
+            .headers
+            .iter()
+            .flat_map(|h| h.channels.list.iter().map(|c| c.name.to_string()))
+            .collect();
+        return Err(DecodeError::Unusable(format!(
+            "an RGB image needs channels R, G and B; this one has {}",
+            if found.is_empty() {
+                "none".to_string()
+            } else {
+                found.join(", ")
+            }
+        )));
+    }
     for header in &meta.headers {
         let size = header.layer_size;
         if size
@@ -215,12 +382,10 @@ pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, exr::error::Error> {
             .checked_mul(size.height())
             .is_none_or(|area| area > MAX_EXR_PIXELS)
         {
-            return Err(exr::error::Error::NotSupported(std::borrow::Cow::Owned(
-                format!(
-                    "{}x{} pixels is more than lumis reads ({MAX_EXR_PIXELS})",
-                    size.width(),
-                    size.height()
-                ),
+            return Err(DecodeError::Unusable(format!(
+                "{}x{} pixels is more than lumis reads ({MAX_EXR_PIXELS})",
+                size.width(),
+                size.height()
             )));
         }
     }

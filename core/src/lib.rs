@@ -3,6 +3,7 @@
 
 pub mod accel;
 pub mod bsdf;
+pub mod bvh;
 pub mod camera;
 pub mod chi2;
 pub mod dylib;
@@ -11,6 +12,7 @@ pub mod error;
 pub mod film;
 pub mod image_io;
 pub mod integrator;
+pub mod limits;
 pub mod math;
 pub mod output;
 pub mod params;

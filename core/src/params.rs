@@ -6,6 +6,7 @@
 //! values of the wrong type or out of range, and parameters a plugin was given but did not use.
 
 use crate::error::did_you_mean;
+use crate::limits::{MAX_COORDINATE, fmt_f32, fmt_number};
 use glam::Vec3;
 use ron::Value;
 use std::collections::BTreeMap;
@@ -33,6 +34,8 @@ pub enum ParamKind {
         default: Option<[f32; 3]>,
         max: f32,
     },
+    /// A position or direction: each component finite and within the scene's coordinate range,
+    /// ±[`MAX_COORDINATE`].
     Vec3 {
         default: Option<[f32; 3]>,
     },
@@ -109,17 +112,22 @@ impl ParamSpec {
 
     /// Valid values, for docs: a range or the list of choices.
     pub fn range_text(&self) -> String {
+        let number = fmt_f32;
         match self.kind {
             ParamKind::Float { min, max, .. } | ParamKind::Interval { min, max, .. } => {
                 let hi = if max.is_infinite() {
                     "∞)".to_string()
                 } else {
-                    format!("{max}]")
+                    format!("{}]", number(max))
                 };
-                format!("[{min}, {hi}")
+                format!("[{}, {hi}", number(min))
             }
             ParamKind::Int { min, max, .. } => format!("[{min}, {max}]"),
-            ParamKind::Rgb { max, .. } if max.is_finite() => format!("[0, {max}] per channel"),
+            ParamKind::Rgb { max, .. } if max.is_finite() => {
+                format!("[0, {}] per channel", number(max))
+            }
+            ParamKind::Rgb { .. } => "finite, non-negative per channel".into(),
+            ParamKind::Vec3 { .. } => format!("[-{0}, {0}] per component", number(MAX_COORDINATE)),
             ParamKind::Choice { options, .. } => options.join(" | "),
             ParamKind::List { options } => format!("any of {}", options.join(", ")),
             _ => String::new(),
@@ -193,24 +201,39 @@ pub fn describe_value(v: &Value) -> String {
     }
 }
 
-fn as_f32(v: &Value) -> Option<f32> {
+/// A number as written (f64, so that a value beyond f32's range is reported as given).
+fn as_number(v: &Value) -> Option<f64> {
     match v {
-        Value::Number(n) => Some(n.into_f64() as f32),
+        Value::Number(n) => Some(n.into_f64()),
         _ => None,
     }
 }
 
-fn as_triple(v: &Value) -> Option<[f32; 3]> {
+fn as_triple(v: &Value) -> Option<[f64; 3]> {
     match v {
         Value::Seq(s) if s.len() == 3 => {
             let mut out = [0.0; 3];
             for (o, x) in out.iter_mut().zip(s) {
-                *o = as_f32(x)?;
+                *o = as_number(x)?;
             }
             Some(out)
         }
         _ => None,
     }
+}
+
+/// Whether `v`, as written (f64), is in [min, max] once it is an f32: `1e12` is accepted for a
+/// maximum of 1e12 (which rounds to 999 999 995 904 in f32), and `1e39` refused (not as an f32
+/// infinity). False for NaN.
+fn in_range(v: f64, min: f32, max: f32) -> bool {
+    let x = v as f32;
+    x.is_finite() && x >= min && x <= max
+}
+
+/// "(1, NaN, 3)", each number as [`fmt_number`] writes it.
+fn fmt_numbers(values: &[f64]) -> String {
+    let items: Vec<String> = values.iter().map(|&v| fmt_number(v)).collect();
+    format!("({})", items.join(", "))
 }
 
 impl Params {
@@ -313,6 +336,24 @@ impl Params {
         }
     }
 
+    /// A value not a finite number, or outside the declared range, named with its parameter.
+    fn bad_number(&self, spec: &ParamSpec, values: &[f64]) -> PluginError {
+        let found = if values.len() == 1 {
+            fmt_number(values[0])
+        } else {
+            fmt_numbers(values)
+        };
+        if values.iter().all(|v| v.is_finite()) {
+            return self.out_of_range(spec, found);
+        }
+        PluginError::Invalid(format!(
+            "parameter `{}` of {} must be finite ({}), found {found}",
+            spec.name,
+            self.plugin,
+            spec.range_text()
+        ))
+    }
+
     pub fn float(&mut self, name: &str) -> Result<f32, PluginError> {
         let (spec, value) = self.take(name);
         let value = value.as_ref();
@@ -320,13 +361,13 @@ impl Params {
             panic!("parameter `{name}` is not declared as a float");
         };
         let v = match value {
-            None => default.ok_or_else(|| self.missing(spec, "a number"))?,
-            Some(v) => as_f32(v).ok_or_else(|| self.wrong_type(name, "a number", v))?,
+            None => default.ok_or_else(|| self.missing(spec, "a number"))? as f64,
+            Some(v) => as_number(v).ok_or_else(|| self.wrong_type(name, "a number", v))?,
         };
-        if !(v >= min && v <= max && v.is_finite()) {
-            return Err(self.out_of_range(spec, v.to_string()));
+        if !in_range(v, min, max) {
+            return Err(self.bad_number(spec, &[v]));
         }
-        Ok(v)
+        Ok(v as f32)
     }
 
     pub fn int(&mut self, name: &str) -> Result<i64, PluginError> {
@@ -337,7 +378,17 @@ impl Params {
         };
         let v = match value {
             None => default.ok_or_else(|| self.missing(spec, "an integer"))?,
-            Some(Value::Number(n)) if n.into_f64().fract() == 0.0 => n.into_f64() as i64,
+            Some(v @ Value::Number(n)) => {
+                let x = n.into_f64();
+                if x.is_finite() && x.fract() != 0.0 {
+                    return Err(self.wrong_type(name, "an integer", v));
+                }
+                // Checked before converting: `as i64` would saturate 1e23 to i64::MAX.
+                if !(x >= min as f64 && x <= max as f64) {
+                    return Err(self.bad_number(spec, &[x]));
+                }
+                x as i64
+            }
             Some(v) => return Err(self.wrong_type(name, "an integer", v)),
         };
         if !(min..=max).contains(&v) {
@@ -368,29 +419,22 @@ impl Params {
         };
         const EXPECTED: &str = "an RGB triple (r, g, b) or one number";
         let c = match value {
-            None => default.ok_or_else(|| self.missing(spec, EXPECTED))?,
-            Some(v) => match (as_f32(v), as_triple(v)) {
+            None => default
+                .ok_or_else(|| self.missing(spec, EXPECTED))?
+                .map(f64::from),
+            Some(v) => match (as_number(v), as_triple(v)) {
                 (Some(grey), _) => [grey; 3],
                 (_, Some(t)) => t,
                 _ => return Err(self.wrong_type(name, EXPECTED, v)),
             },
         };
-        if c.iter().any(|x| !x.is_finite() || *x < 0.0 || *x > max) {
-            return Err(PluginError::OutOfRange {
-                plugin: self.plugin.clone(),
-                name: name.to_string(),
-                range: if max.is_finite() {
-                    format!("[0, {max}] per channel")
-                } else {
-                    "finite, non-negative values".into()
-                },
-                found: format!("{c:?}"),
-            });
+        if c.iter().any(|&x| !in_range(x, 0.0, max)) {
+            return Err(self.bad_number(spec, &c));
         }
-        Ok(Vec3::from(c))
+        Ok(Vec3::from(c.map(|x| x as f32)))
     }
 
-    /// A finite 3D vector.
+    /// A finite 3D vector within the scene's coordinate range.
     pub fn vec3(&mut self, name: &str) -> Result<Vec3, PluginError> {
         let (spec, value) = self.take(name);
         let value = value.as_ref();
@@ -399,13 +443,17 @@ impl Params {
         };
         const EXPECTED: &str = "a vector (x, y, z)";
         let v = match value {
-            None => default.ok_or_else(|| self.missing(spec, EXPECTED))?,
+            None => default
+                .ok_or_else(|| self.missing(spec, EXPECTED))?
+                .map(f64::from),
             Some(v) => as_triple(v).ok_or_else(|| self.wrong_type(name, EXPECTED, v))?,
         };
-        if v.iter().any(|x| !x.is_finite()) {
-            return Err(self.out_of_range(spec, format!("{v:?}")));
+        if v.iter()
+            .any(|&x| !in_range(x, -MAX_COORDINATE, MAX_COORDINATE))
+        {
+            return Err(self.bad_number(spec, &v));
         }
-        Ok(Vec3::from(v))
+        Ok(Vec3::from(v.map(|x| x as f32)))
     }
 
     /// An interval (lo, hi) with min <= lo <= hi <= max.
@@ -416,17 +464,24 @@ impl Params {
             panic!("parameter `{name}` is not declared as an interval");
         };
         let v = match value {
-            None => default,
-            Some(v @ Value::Seq(s)) if s.len() == 2 => match (as_f32(&s[0]), as_f32(&s[1])) {
+            None => default.map(f64::from),
+            Some(v @ Value::Seq(s)) if s.len() == 2 => match (as_number(&s[0]), as_number(&s[1])) {
                 (Some(lo), Some(hi)) => [lo, hi],
                 _ => return Err(self.wrong_type(name, "an interval (lo, hi)", v)),
             },
             Some(v) => return Err(self.wrong_type(name, "an interval (lo, hi)", v)),
         };
-        if !(v[0] >= min && v[0] <= v[1] && v[1] <= max) {
-            return Err(self.out_of_range(spec, format!("({}, {})", v[0], v[1])));
+        if !(in_range(v[0], min, max) && in_range(v[1], min, max)) {
+            return Err(self.bad_number(spec, &v));
         }
-        Ok(v)
+        if v[0] > v[1] {
+            return Err(PluginError::Invalid(format!(
+                "parameter `{name}` of {} is the reversed interval {}: write (lo, hi) with lo <= hi",
+                self.plugin,
+                fmt_numbers(&v)
+            )));
+        }
+        Ok(v.map(|x| x as f32))
     }
 
     fn string_value(&mut self, name: &str) -> Result<Option<String>, PluginError> {
@@ -621,6 +676,91 @@ mod tests {
         let mut p = params(r#"{"reflectance": (1, 1.5, 0)}"#).unwrap();
         let e = p.rgb("reflectance").unwrap_err().to_string();
         assert!(e.contains("must be in [0, 1] per channel"), "{e}");
+    }
+
+    static MORE: &[ParamSpec] = &[
+        ParamSpec {
+            name: "clamp",
+            kind: ParamKind::Interval {
+                default: [0.0, 1.0],
+                min: 0.0,
+                max: 1.0,
+            },
+            unit: "",
+            description: "bounds",
+        },
+        ParamSpec {
+            name: "position",
+            kind: ParamKind::Vec3 { default: None },
+            unit: "",
+            description: "where",
+        },
+        ParamSpec {
+            name: "count",
+            kind: ParamKind::Int {
+                default: Some(1),
+                min: 1,
+                max: 1 << 20,
+            },
+            unit: "",
+            description: "how many",
+        },
+    ];
+
+    fn more(text: &str) -> Params {
+        Params::new("integrator `t`", MORE, ron::from_str(text).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn messages_name_the_real_fault() {
+        // A huge integer is reported as written, not saturated to i64::MAX.
+        let e = more(r#"{"count": 1e23}"#)
+            .int("count")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must be in [1, 1048576], found 1e23"), "{e}");
+        let e = more(r#"{"count": 2.5}"#)
+            .int("count")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("expects an integer"), "{e}");
+        // A reversed interval says so, not that it is out of [0, 1].
+        let e = more(r#"{"clamp": (0.9, 0.1)}"#)
+            .interval("clamp")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("reversed interval (0.9, 0.1)"), "{e}");
+        let e = more(r#"{"clamp": (NaN, 0.1)}"#)
+            .interval("clamp")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`clamp`") && e.contains("must be finite"), "{e}");
+        // Vectors have a range in their message, and NaN is named.
+        let e = more(r#"{"position": (NaN, 0, 0)}"#)
+            .vec3("position")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`position`")
+                && e.contains("(NaN, 0, 0)")
+                && e.contains("[-1e12, 1e12] per"),
+            "{e}"
+        );
+        let e = more(r#"{"position": (0, 2e12, 0)}"#)
+            .vec3("position")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must be in [-1e12, 1e12] per component"), "{e}");
+        // A float beyond f32 is reported as written, not as inf.
+        let mut p = params(r#"{"roughness": 1e39}"#).unwrap();
+        let e = p.float("roughness").unwrap_err().to_string();
+        assert!(e.contains("found 1e39"), "{e}");
+        let mut p = params(r#"{"reflectance": (NaN, 0, 0)}"#).unwrap();
+        let e = p.rgb("reflectance").unwrap_err().to_string();
+        assert!(
+            e.contains("`reflectance`") && e.contains("must be finite"),
+            "{e}"
+        );
     }
 
     #[test]

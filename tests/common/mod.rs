@@ -61,42 +61,37 @@ pub fn integrators() -> Vec<&'static str> {
         .collect()
 }
 
-/// Builds the example plugin library `lumis-oren-nayar` (once per test binary) and returns its
-/// path, `target/debug/liblumis_oren_nayar.so` on Linux, where the scenes expect it.
+/// The example plugin library `lumis-oren-nayar`, which cargo builds with the tests (a
+/// dev-dependency, built with its cdylib beside this test's executable), placed where the
+/// bundled scene `scenes/plugin.ron` looks for it: `target/debug/liblumis_oren_nayar.so` on Linux
+/// (a hard link, or a copy, made once per test binary and renamed into place).
 pub fn example_library() -> &'static Path {
     static LIBRARY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     LIBRARY.get_or_init(|| {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        // The test profile, so that `cargo test` reuses its compiled dependencies.
-        let status = Command::new(cargo)
-            .args([
-                "build",
-                "--quiet",
-                "-p",
-                "lumis-oren-nayar",
-                "--profile",
-                "test",
-            ])
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .status()
-            .expect("run cargo");
-        assert!(status.success(), "building the example plugin failed");
-        // target/<profile>/deps/<this test> -> target/debug, where the test profile builds (and
-        // where scenes/plugin.ron looks) whatever profile the tests themselves run under.
-        let dir = std::env::current_exe()
-            .unwrap()
-            .parent()
-            .unwrap()
-            .parent()
-            .unwrap()
-            .with_file_name("debug");
         let file = format!(
             "{}lumis_oren_nayar{}",
             std::env::consts::DLL_PREFIX,
             std::env::consts::DLL_SUFFIX
         );
-        let path = dir.join(file);
-        assert!(path.exists(), "{} not built", path.display());
+        // target/<profile>/deps/<this test>: the library is in the same directory.
+        let exe = std::env::current_exe().unwrap();
+        let deps = exe.parent().unwrap();
+        let built = deps.join(&file);
+        assert!(
+            built.exists(),
+            "{} not built (it is a dev-dependency of lumis: `cargo test` builds it)",
+            built.display()
+        );
+        // target/debug, whatever profile the tests run under.
+        let target = deps.parent().unwrap().with_file_name("debug");
+        std::fs::create_dir_all(&target).unwrap();
+        let path = target.join(&file);
+        let tmp = target.join(format!(".{file}.{}.tmp", std::process::id()));
+        let _ = std::fs::remove_file(&tmp);
+        if std::fs::hard_link(&built, &tmp).is_err() {
+            std::fs::copy(&built, &tmp).unwrap();
+        }
+        std::fs::rename(&tmp, &path).unwrap();
         path
     })
 }

@@ -29,10 +29,9 @@ pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh,
 pub(super) fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
     // gltf 1.4's validation indexes `accessors` with a primitive's POSITION index before
     // checking it (it panics on a dangling index, found by fuzzing): check indices first.
-    let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
-        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(invalid_gltf)?;
     check_accessor_indices(&unchecked)?;
-    gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))
+    gltf::Gltf::from_slice(bytes).map_err(invalid_gltf)
 }
 
 /// As [`load_bytes`], one mesh per primitive with the index of its material (`None`: the
@@ -63,12 +62,27 @@ pub(super) fn load_parts(
             return Err("the node hierarchy has a cycle".into());
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let node_label = || {
+            node.name()
+                .map_or(format!("node {}", node.index()), |n| format!("node `{n}`"))
+        };
+        if !world.is_finite() || world.row(3) != glam::Vec4::W {
+            return Err(format!(
+                "{}: its transform (with its parents') is not finite or not affine",
+                node_label()
+            ));
+        }
+        // A node scaled to nothing (a common way to hide one) has no surface: it is skipped.
+        let flattened = super::shapes::check_affine(&world).is_err();
         let selected = selected
             || only.is_some_and(|name| {
                 node.name() == Some(name) || node.mesh().and_then(|m| m.name()) == Some(name)
             });
         found |= selected;
-        if selected && let Some(m) = node.mesh() {
+        if selected
+            && !flattened
+            && let Some(m) = node.mesh()
+        {
             for (material, part) in read_mesh(&m, &buffers)? {
                 parts.push((material, part.transformed(&world)));
             }
@@ -95,6 +109,97 @@ pub(super) fn load_parts(
         return Err("the file has no triangles".into());
     }
     Ok(parts)
+}
+
+/// A short message for a file the glTF crate refuses: its validation lists every problem on one
+/// line (hundreds of characters for one bad number repeated); the first few suffice.
+fn invalid_gltf(e: gltf::Error) -> String {
+    const SHOWN: usize = 3;
+    let gltf::Error::Validation(problems) = e else {
+        return format!("not a valid glTF file: {e}");
+    };
+    let shown: Vec<String> = problems
+        .iter()
+        .take(SHOWN)
+        .map(|(path, problem)| format!("`{path}`: {problem}"))
+        .collect();
+    let more = problems.len().saturating_sub(SHOWN);
+    // Exporters write infinite bounds as null (JavaScript) or leave them out.
+    let bounds = problems.iter().any(|(path, _)| {
+        let path = path.to_string();
+        path.ends_with(".min") || path.ends_with(".max")
+    });
+    format!(
+        "not a valid glTF file: {}{}{}",
+        shown.join("; "),
+        if more > 0 {
+            format!(" (and {more} more)")
+        } else {
+            String::new()
+        },
+        if bounds {
+            "; POSITION bounds must be present and finite: are the positions infinite?"
+        } else {
+            ""
+        }
+    )
+}
+
+/// The file a buffer URI names: a relative path inside the model's folder (glTF URIs are
+/// relative by the specification). Absolute paths, other schemes (`file:`, `http:`) and paths
+/// that climb out of the folder are refused, so that a model cannot read `/etc/passwd` or
+/// `../../secret` as a buffer. Percent escapes are decoded first (`%2e%2e` is `..`).
+fn buffer_path(base: &Path, uri: &str) -> Result<std::path::PathBuf, String> {
+    let decoded = percent_decode(uri)
+        .ok_or_else(|| format!("buffer URI `{uri}` has an invalid percent escape"))?;
+    let refuse = |why: &str| {
+        Err(format!(
+            "buffer URI `{uri}` {why}: only relative paths inside the model's folder and data: URIs are read"
+        ))
+    };
+    if decoded.contains('\0') {
+        return refuse("contains a NUL character");
+    }
+    let scheme_end = decoded.find(':');
+    let first_separator = decoded.find(['/', '\\']);
+    if let Some(colon) = scheme_end
+        && first_separator.is_none_or(|s| colon < s)
+    {
+        return refuse(&format!("has the scheme `{}:`", &decoded[..colon]));
+    }
+    if decoded.starts_with(['/', '\\']) {
+        return refuse("is an absolute path");
+    }
+    let mut depth = 0usize;
+    for part in decoded.split(['/', '\\']) {
+        match part {
+            "" | "." => {}
+            ".." => match depth.checked_sub(1) {
+                Some(d) => depth = d,
+                None => return refuse("climbs out of the model's folder"),
+            },
+            _ => depth += 1,
+        }
+    }
+    Ok(base.join(decoded))
+}
+
+/// Decodes `%XX` escapes; `None` for a malformed escape or bytes that are not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = text.get(i + 1..i + 3)?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
 }
 
 /// Every accessor a mesh primitive names must exist.
@@ -132,7 +237,7 @@ fn load_buffers(gltf: &gltf::Gltf, base: &Path) -> Result<Vec<Vec<u8>>, String> 
                         .decode(payload)
                         .map_err(|e| format!("buffer {}: invalid base64: {e}", buffer.index()))?
                 } else {
-                    let file = base.join(uri.replace("%20", " "));
+                    let file = buffer_path(base, uri)?;
                     std::fs::read(&file)
                         .map_err(|e| format!("cannot read buffer `{}`: {e}", file.display()))?
                 }
@@ -220,6 +325,17 @@ fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Vec<(Option<usize>, 
             return Err(format!(
                 "{label}: index {bad} is out of range for {} vertices",
                 positions.len()
+            ));
+        }
+        if prim.mode() == Mode::Triangles && !indices.len().is_multiple_of(3) {
+            return Err(format!(
+                "{label}: a triangle list of {} {} is not a multiple of 3 (the list is truncated)",
+                indices.len(),
+                if prim.indices().is_some() {
+                    "indices"
+                } else {
+                    "vertices"
+                }
             ));
         }
         let triangles: Vec<[u32; 3]> = match prim.mode() {

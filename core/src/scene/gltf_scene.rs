@@ -234,8 +234,11 @@ pub fn metallic_roughness_bsdf(base_color: Vec3, metallic: f32, roughness: f32) 
     }
 }
 
+/// `x` as the shortest decimal that reads back as it (so that messages quote `1e30`, not the
+/// f32's exact value `1.0000000150474662e30`); the parameter reads the same f32.
 fn number(x: f32) -> Value {
-    Value::Number(ron::value::Number::from(x))
+    let shortest = x.to_string().parse::<f64>().unwrap_or(x as f64);
+    Value::Number(ron::value::Number::from(shortest))
 }
 
 fn params<const N: usize>(vectors: [(&str, Vec3); N]) -> BTreeMap<String, Value> {

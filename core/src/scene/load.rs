@@ -4,7 +4,7 @@
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;
 use super::shapes::{self, ShapeGeometry, Sphere};
-use super::{Scene, gltf, gltf_scene, obj, ply};
+use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply};
 use crate::accel::Geometry;
 use crate::bsdf::Bsdf;
 use crate::emitter::{Emitter, EmitterContext};
@@ -24,6 +24,8 @@ pub struct LoadedScene {
     pub integrator: Box<dyn Integrator>,
     /// The description after overrides, as built.
     pub description: SceneDescription,
+    /// Problems that do not stop the render (e.g. no light can reach the camera), as sentences.
+    pub warnings: Vec<String>,
 }
 
 /// Reads, parses and builds the scene file at `path`, with `--set` overrides applied.
@@ -34,13 +36,9 @@ pub fn load_scene(path: &Path, overrides: &[String]) -> Result<LoadedScene, Scen
     build_scene(description, path)
 }
 
-fn syntax_error(path: &Path, e: ron::error::SpannedError) -> SceneError {
-    SceneError::at(
-        path,
-        e.span.start.line,
-        e.span.start.col,
-        e.code.to_string(),
-    )
+fn syntax_error(path: &Path, text: &str, e: ron::error::SpannedError) -> SceneError {
+    let (line, col, message) = super::syntax::explain(text, &e);
+    SceneError::at(path, line, col, message)
 }
 
 /// Parses scene text; `path` is used for messages only.
@@ -50,11 +48,12 @@ pub fn parse_description(
     overrides: &[String],
 ) -> Result<SceneDescription, SceneError> {
     // Parse the text as written first, so that its errors carry line and column.
-    let description: SceneDescription = ron::from_str(text).map_err(|e| syntax_error(path, e))?;
+    let description: SceneDescription =
+        ron::from_str(text).map_err(|e| syntax_error(path, text, e))?;
     if overrides.is_empty() {
         return Ok(description);
     }
-    let mut doc: Value = ron::from_str(text).map_err(|e| syntax_error(path, e))?;
+    let mut doc: Value = ron::from_str(text).map_err(|e| syntax_error(path, text, e))?;
     for text in overrides {
         let o = Override::parse(text).map_err(|e| SceneError::new(path, e))?;
         o.apply(&mut doc).map_err(|e| SceneError::new(path, e))?;
@@ -86,9 +85,10 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     }
 
     let film = &desc.film;
-    if film.width == 0 || film.height == 0 || film.width > 1 << 16 || film.height > 1 << 16 {
+    let max_side = crate::limits::MAX_FILM_SIDE;
+    if film.width == 0 || film.height == 0 || film.width > max_side || film.height > max_side {
         return Err(err(format!(
-            "film size {}x{} is invalid: width and height must be in 1..=65536",
+            "film size {}x{} is invalid: width and height must be in 1..={max_side}",
             film.width, film.height
         )));
     }
@@ -119,8 +119,17 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         }
     };
     if !film.exposure.is_finite() {
-        return Err(err("film `exposure` must be finite".into()));
+        return Err(err(format!(
+            "film `exposure` must be finite, found {}",
+            film.exposure
+        )));
     }
+    // The film alone, before anything large is built; the AOVs are added once the integrator
+    // says which it writes.
+    let memory_limit = crate::limits::memory_limit().map_err(err)?;
+    let mut film_memory = crate::limits::MemoryEstimate::default();
+    budget::add_film(&mut film_memory, &window, 3);
+    film_memory.check(&memory_limit).map_err(err)?;
     if desc.sampler.spp == 0 {
         return Err(err("sampler `spp` must be at least 1".into()));
     }
@@ -146,6 +155,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     let mut shape_bsdf = Vec::new();
     let mut shape_emitter = Vec::new();
     let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
+    let mut emitting_triangles = 0u64;
     for (i, shape) in desc.shapes.iter().enumerate() {
         let label = format!("shapes[{i}] ({})", shape.kind);
         let shape_err = |e| match e {
@@ -189,6 +199,12 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             }
         }
         for (bsdf, geometry) in parts {
+            crate::accel::check_shape(&geometry).map_err(|e| err(format!("{label}: {e}")))?;
+            if shape.emitter.is_some()
+                && let ShapeGeometry::Mesh(mesh) = &geometry
+            {
+                emitting_triangles += mesh.indices.len() as u64;
+            }
             shape_bsdf.push(bsdf as u32);
             shape_emitter.push(match &shape.emitter {
                 None => None,
@@ -241,6 +257,10 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
 
     let integrator = build_integrator(&desc.integrator, base).map_err(err)?;
 
+    let mut memory = film_memory;
+    budget::add_geometry(&mut memory, &geometries, emitting_triangles);
+    memory.check(&memory_limit).map_err(err)?;
+
     let output = match &film.output {
         Some(o) => PathBuf::from(o),
         None => PathBuf::from(path.file_stem().unwrap_or_default()).with_extension("exr"),
@@ -262,10 +282,20 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         output,
         exposure: film.exposure,
     };
+    // The AOVs depend on the scene (e.g. one per light): known only now, still before the film
+    // is allocated.
+    let aovs = integrator.aovs(&scene);
+    let mut memory = crate::limits::MemoryEstimate::default();
+    let channels: usize = aovs.iter().map(|a| a.channels.len()).sum();
+    budget::add_film(&mut memory, &window, 3 + channels as u64);
+    budget::add_geometry(&mut memory, scene.geometry.shapes(), emitting_triangles);
+    memory.check(&memory_limit).map_err(err)?;
+    let warnings = light_check::light_warnings(&scene);
     Ok(LoadedScene {
         scene,
         integrator,
         description: desc,
+        warnings,
     })
 }
 
@@ -409,9 +439,15 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
         _ => {
             let radius = shape.radius.unwrap_or(1.0);
             let center = Vec3::from(shape.center.unwrap_or([0.0; 3]));
-            if !(radius > 0.0 && radius.is_finite() && center.is_finite()) {
+            if !center.is_finite() {
                 return Err(scene_err(format!(
-                    "sphere radius must be positive and finite, found {radius}"
+                    "sphere `center` must be finite, found {}",
+                    crate::limits::fmt_f32s(&center.to_array())
+                )));
+            }
+            if !(radius > 0.0 && radius.is_finite()) {
+                return Err(scene_err(format!(
+                    "sphere `radius` must be positive and finite, found {radius}"
                 )));
             }
             // An analytic sphere stays a sphere only under rotation, uniform scale and translation.

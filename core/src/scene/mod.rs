@@ -1,13 +1,16 @@
 //! Scenes: the RON description, how it is built into renderable form, and the built scene.
 
+pub mod budget;
 pub mod description;
 pub mod gltf;
 pub mod gltf_scene;
+pub mod light_check;
 pub mod load;
 pub mod obj;
 pub mod overrides;
 pub mod ply;
 pub mod shapes;
+pub mod syntax;
 
 use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;

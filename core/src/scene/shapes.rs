@@ -1,7 +1,7 @@
 //! Shape geometry: triangle meshes (built-in or from glTF) and analytic spheres, in world space.
 
 use super::description::TransformDescription;
-use glam::{Mat3, Mat4, Vec3};
+use glam::{DMat3, DVec3, Mat4, Vec3};
 use std::f32::consts::TAU;
 
 /// A triangle mesh in world space.
@@ -35,13 +35,23 @@ impl Mesh {
         for p in &mut self.positions {
             *p = m.transform_point3(*p);
         }
-        let normal_matrix = Mat3::from_mat4(*m).inverse().transpose();
+        // In f64: the inverse of a transform scaling by 1e-30 (determinant 1e-90) is out of
+        // f32's range, not of f64's.
+        let linear = DMat3::from_cols(
+            m.x_axis.truncate().as_dvec3(),
+            m.y_axis.truncate().as_dvec3(),
+            m.z_axis.truncate().as_dvec3(),
+        );
+        let normal_matrix = linear.inverse().transpose();
         if let Some(normals) = &mut self.normals {
             for n in normals.iter_mut() {
-                *n = (normal_matrix * *n).normalize_or_zero();
+                *n = (normal_matrix * n.as_dvec3())
+                    .normalize_or_zero()
+                    .as_vec3()
+                    .normalize_or_zero();
             }
         }
-        if m.determinant() < 0.0 {
+        if linear.determinant() < 0.0 {
             for t in &mut self.indices {
                 t.swap(1, 2);
             }
@@ -89,9 +99,30 @@ impl Mesh {
         ]
     }
 
+    /// The area of triangle `i`, computed in f64 so that neither the square of a tiny edge
+    /// (1e-12: 1e-48) nor of a huge one (1e12: 1e48) leaves f32's range on the way.
     pub fn triangle_area(&self, i: usize) -> f32 {
+        let [a, b, c] = self.triangle(i).map(Vec3::as_dvec3);
+        (0.5 * (b - a).cross(c - a).length()) as f32
+    }
+
+    /// The unit geometric normal of triangle `i`, or zero for a degenerate triangle.
+    pub fn triangle_normal(&self, i: usize) -> Vec3 {
         let [a, b, c] = self.triangle(i);
-        0.5 * (b - a).cross(c - a).length()
+        unit_normal((b - a).cross(c - a))
+    }
+}
+
+/// `v` scaled to unit length, or zero. Scaled by its largest component first, so that the
+/// squared length neither underflows (components below 1e-19) nor overflows (above 1e19):
+/// cross products of tiny or huge triangles' edges still give a unit normal.
+#[inline]
+pub fn unit_normal(v: Vec3) -> Vec3 {
+    let largest = v.abs().max_element();
+    if largest > 0.0 && largest.is_finite() {
+        (v / largest).normalize()
+    } else {
+        Vec3::ZERO
     }
 }
 
@@ -184,8 +215,39 @@ fn rotation(axis: Vec3, degrees: f32) -> Mat4 {
     )
 }
 
-/// The matrix of a transform description, or a message saying what is wrong with it.
+/// Fails naming `field` when a value of it is not finite.
+fn finite(field: &str, values: &[f32]) -> Result<(), String> {
+    if values.iter().all(|v| v.is_finite()) {
+        return Ok(());
+    }
+    Err(format!(
+        "transform `{field}` must be finite, found {}",
+        crate::limits::fmt_f32s(values)
+    ))
+}
+
+/// The matrix of a transform description, or a message saying what is wrong with it: a field
+/// that is not finite, a projective or singular matrix. Its scale is checked by what it does to
+/// the shape (`accel::check_shape`), not here.
 pub fn transform_matrix(t: &TransformDescription) -> Result<Mat4, String> {
+    if let Some(s) = &t.scale {
+        finite("scale", s)?;
+    }
+    for r in &t.rotate {
+        finite("rotate.axis", &r.axis)?;
+        finite("rotate.angle", &[r.angle])?;
+    }
+    if let Some(v) = &t.translate {
+        finite("translate", v)?;
+    }
+    if let Some(look) = &t.look_at {
+        finite("look_at.origin", &look.origin)?;
+        finite("look_at.target", &look.target)?;
+        finite("look_at.up", &look.up)?;
+    }
+    if let Some(m) = &t.matrix {
+        finite("matrix", m)?;
+    }
     let scale = Mat4::from_scale(Vec3::from(t.scale.unwrap_or([1.0; 3])));
     let m = if let Some(matrix) = t.matrix {
         if t.scale.is_some() || !t.rotate.is_empty() || t.translate.is_some() || t.look_at.is_some()
@@ -193,6 +255,13 @@ pub fn transform_matrix(t: &TransformDescription) -> Result<Mat4, String> {
             return Err(
                 "`matrix` cannot be combined with scale, rotate, translate or look_at".into(),
             );
+        }
+        let last_row = &matrix[12..16];
+        if last_row != [0.0, 0.0, 0.0, 1.0] {
+            return Err(format!(
+                "the last row of `matrix` must be (0, 0, 0, 1), found {}: projective transforms are not supported",
+                crate::limits::fmt_f32s(last_row)
+            ));
         }
         Mat4::from_cols_array(&matrix).transpose()
     } else if let Some(look) = &t.look_at {
@@ -225,10 +294,47 @@ pub fn transform_matrix(t: &TransformDescription) -> Result<Mat4, String> {
         }
         Mat4::from_translation(Vec3::from(t.translate.unwrap_or([0.0; 3]))) * m
     };
-    if !m.is_finite() || m.determinant().abs() < 1e-30 {
-        return Err("the transform is singular or not finite".into());
-    }
+    check_affine(&m)?;
     Ok(m)
+}
+
+/// How far the columns of the linear part are from parallel: |det| / (|c₀| |c₁| |c₂|), which is
+/// 1 for orthogonal columns of any length and 0 for a singular matrix (Hadamard's inequality).
+/// Unlike the determinant it does not depend on the scale, so a transform scaling by 1e-20 is
+/// not mistaken for a singular one. `None` if a column is zero.
+pub fn column_independence(m: &Mat4) -> Option<f64> {
+    let cols: [DVec3; 3] = [m.x_axis, m.y_axis, m.z_axis].map(|c| c.truncate().as_dvec3());
+    let lengths = cols.map(|c| c.length());
+    if lengths.iter().any(|&l| !(l > 0.0 && l.is_finite())) {
+        return None;
+    }
+    let det = DMat3::from_cols(cols[0], cols[1], cols[2]).determinant();
+    Some(det.abs() / (lengths[0] * lengths[1] * lengths[2]))
+}
+
+/// Smallest [`column_independence`] accepted: below it the shape is squashed flat along some
+/// direction to within f32 rounding (about 1e-7 relative), and its normals are meaningless.
+const MIN_COLUMN_INDEPENDENCE: f64 = 1e-6;
+
+/// Refuses transforms that are not finite, not affine, or (nearly) singular.
+pub fn check_affine(m: &Mat4) -> Result<(), String> {
+    if !m.is_finite() {
+        return Err("the transform is not finite (its parts multiply beyond f32's range)".into());
+    }
+    let row = m.row(3);
+    if row != glam::Vec4::W {
+        return Err(format!(
+            "the transform is projective (last row {:?}, not (0, 0, 0, 1))",
+            row.to_array()
+        ));
+    }
+    match column_independence(m) {
+        Some(q) if q >= MIN_COLUMN_INDEPENDENCE => Ok(()),
+        _ => Err(
+            "the transform is singular: it flattens the shape (a zero scale, or axes that coincide)"
+                .into(),
+        ),
+    }
 }
 
 #[cfg(test)]

@@ -186,7 +186,7 @@ static PARAMS: &[ParamSpec] = &[
         name: "radiance",
         kind: ParamKind::Rgb {
             default: None,
-            max: f32::INFINITY,
+            max: lumis_core::limits::MAX_EMISSION,
         },
         unit: "W/(m²·sr)",
         description: "emitted radiance",
@@ -216,9 +216,8 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
         Some(ShapeGeometry::Mesh(mesh)) => {
             let triangles: Vec<[Vec3; 3]> =
                 (0..mesh.indices.len()).map(|i| mesh.triangle(i)).collect();
-            let normals = triangles
-                .iter()
-                .map(|[a, b, c]| (*b - *a).cross(*c - *a).normalize_or_zero())
+            let normals = (0..mesh.indices.len())
+                .map(|i| mesh.triangle_normal(i))
                 .collect();
             let areas: Vec<f32> = (0..mesh.indices.len())
                 .map(|i| mesh.triangle_area(i))

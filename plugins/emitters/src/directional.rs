@@ -56,7 +56,7 @@ static PARAMS: &[ParamSpec] = &[
         name: "irradiance",
         kind: ParamKind::Rgb {
             default: None,
-            max: f32::INFINITY,
+            max: lumis_core::limits::MAX_EMISSION,
         },
         unit: "W/m²",
         description: "irradiance on a surface facing the light",

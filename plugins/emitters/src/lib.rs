@@ -14,7 +14,7 @@ pub const SCALE: ParamSpec = ParamSpec {
     kind: ParamKind::Float {
         default: Some(1.0),
         min: 0.0,
-        max: f32::INFINITY,
+        max: lumis_core::limits::MAX_EMITTER_SCALE,
     },
     unit: "",
     description: "multiplies the emitted power",

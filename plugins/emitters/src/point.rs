@@ -61,7 +61,7 @@ static PARAMS: &[ParamSpec] = &[
         name: "intensity",
         kind: ParamKind::Rgb {
             default: None,
-            max: f32::INFINITY,
+            max: lumis_core::limits::MAX_EMISSION,
         },
         unit: "W/sr",
         description: "radiant intensity",

@@ -1,8 +1,7 @@
 //! Bad input gets a clear error, never a panic: one test per kind of mistake, asserting what the
 //! message says, and that the program exits non-zero without a backtrace.
 
-mod common;
-use common::{SMALL_SCENE, lumis, scene_file};
+use crate::common::{SMALL_SCENE, lumis, scene_file};
 
 /// Renders `text` with the CLI and returns its stderr, asserting it failed cleanly.
 fn cli_error(text: &str, extra: &[&str]) -> String {
@@ -253,7 +252,10 @@ fn gltf_with_out_of_range_index_is_refused() {
     let (dir, path) = scene_file("scene.ron", &text);
     std::fs::write(dir.path().join("tri.gltf"), gltf).unwrap();
     std::fs::write(dir.path().join("tri.bin"), bin).unwrap();
-    let e = common::load(&path, &[]).err().expect("refused").to_string();
+    let e = crate::common::load(&path, &[])
+        .err()
+        .expect("refused")
+        .to_string();
     assert_contains(&e, &["tri.gltf", "index 7 is out of range for 3 vertices"]);
 }
 

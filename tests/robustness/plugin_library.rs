@@ -1,8 +1,8 @@
-//! Run-time plugin libraries: the example `oren_nayar` library is built, loaded by a scene,
-//! rendered, and its sampling checked with the chi-square harness; bad libraries are refused.
+//! Run-time plugin libraries: the example `oren_nayar` library (built with the tests, as a
+//! dev-dependency) is loaded by a scene, rendered, and its sampling checked with the chi-square
+//! harness; bad libraries are refused.
 
-mod common;
-use common::{SMALL_SCENE, example_library, lumis, scene_file};
+use crate::common::{SMALL_SCENE, example_library, lumis, scene_file};
 use std::path::PathBuf;
 
 fn scene_with_library(library: &str) -> String {
