@@ -9,13 +9,17 @@ pub mod allocation;
 pub mod aovs;
 pub mod estimator;
 pub mod mis;
+pub mod moments;
 pub mod phase;
+pub mod pilot;
 pub mod weighting;
 
 pub mod alpha;
 pub mod balance;
 pub mod bsdf;
+pub mod cost_alpha;
 pub mod cutoff;
+pub mod exact_alpha;
 pub mod light;
 pub mod max;
 pub mod power;
