@@ -22,7 +22,10 @@ pub mod cutoff;
 pub mod exact_alpha;
 pub mod light;
 pub mod max;
+pub mod optimal_mis;
+pub mod pooled_alpha;
 pub mod power;
+pub mod variance_aware;
 
 /// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.
 #[inline(never)]
