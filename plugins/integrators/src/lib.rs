@@ -10,6 +10,7 @@ pub mod aovs;
 pub mod estimator;
 pub mod mis;
 pub mod moments;
+pub mod one_point;
 pub mod phase;
 pub mod pilot;
 pub mod weighting;
