@@ -11,9 +11,16 @@ fn repo_path(relative: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
+/// Renders as `lumis render` does: the integrator's `preprocess` (the pilot passes of
+/// `variance_aware` and `pooled_alpha`, the cost measurement of `cost_alpha`) first.
 fn render(path: &Path, overrides: &[String]) -> lumis::film::Film {
     let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
-    common::render(path, &overrides, 2)
+    let mut loaded =
+        common::load(path, &overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    loaded.integrator.preprocess(&loaded.scene);
+    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
+        .expect("render")
+        .0
 }
 
 /// Paired test of equal means: under "both unbiased" the per-pixel differences d_p are
@@ -98,6 +105,40 @@ fn every_integrator_converges_to_the_same_mean() {
                 "{name}: {integrator} differs from balance by z = {z:.2}"
             );
         }
+    }
+}
+
+/// Every registered integrator (with its `preprocess`, so the pilot-based methods run their
+/// pilots) on a Lambertian floor under a sphere light, seen at (nearly) one point: the mean over
+/// the 64 independent pixel estimates is within 4 standard errors of the analytic ρ L (r/d)²
+/// (E = π L (r/d)² on the sphere's axis).
+#[test]
+fn every_integrator_gives_the_analytic_radiance_under_a_sphere_light() {
+    let (r, d, radiance, rho) = (0.25f64, 2.0f64, 10.0f64, 0.5f64);
+    let text = format!(
+        r#"Scene(
+    camera: (position: (0.6, 1.0, -1.2), target: (0, 0, 0), fov: 0.01),
+    film: (width: 8, height: 8),
+    sampler: (spp: 4, seed: 3),
+    integrator: (type: "balance", samples: 256),
+    bsdfs: {{ "grey": (type: "diffuse", reflectance: {rho}) }},
+    shapes: [
+        (type: "rectangle", bsdf: "grey", transform: (scale: (10, 10, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        (type: "sphere", bsdf: "grey", radius: {r}, center: (0, {d}, 0), emitter: (type: "area", radiance: {radiance})),
+    ],
+)"#
+    );
+    let (_dir, path) = scene_file("sphere.ron", &text);
+    let expected = rho * radiance * (r / d).powi(2);
+    for name in integrators() {
+        let film = render(&path, &[format!("integrator.type={name}")]);
+        let values: Vec<f64> = film.color.iter().map(|c| c.y as f64).collect();
+        let (mean, se) = common::mean_and_standard_error(&values);
+        assert!(se < 0.05 * expected, "{name}: too noisy to test: se {se}");
+        assert!(
+            (mean - expected).abs() < 4.0 * se,
+            "{name}: mean {mean} vs {expected} (se {se})"
+        );
     }
 }
 
