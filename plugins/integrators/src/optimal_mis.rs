@@ -133,7 +133,9 @@ impl OptimalSystem {
     /// below 10⁻⁶ Â_BB Â_LL) or the result is not finite.
     pub fn solve(&self) -> Option<Coefficients> {
         let det = self.a_bb * self.a_ll - self.a_bl * self.a_bl;
-        if !(det > CONDITION * self.a_bb * self.a_ll) || !det.is_finite() {
+        // Also rejects a NaN determinant.
+        let well_conditioned = det > CONDITION * self.a_bb * self.a_ll;
+        if !well_conditioned || !det.is_finite() {
             return None;
         }
         let a_b = (self.a_ll * self.b[0] - self.a_bl * self.b[1]) / det;
@@ -143,8 +145,8 @@ impl OptimalSystem {
 }
 
 /// Kondapaneni et al.'s direct estimator: the coefficients from the phase's own samples, the
-/// estimate â_B + â_L per channel; per record, its term of the control-variate form, g − â·u
-/// + (â_B + â_L)/n, which add up to it. The balance heuristic where Â is ill-conditioned or a
+/// estimate â_B + â_L per channel; per record, its term of the control-variate form,
+/// g − â·u + (â_B + â_L)/n, which add up to it. The balance heuristic where Â is ill-conditioned or a
 /// channel's estimate is negative or not finite.
 pub struct DirectOptimal;
 
