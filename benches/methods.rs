@@ -1,9 +1,10 @@
 //! The MIS methods against the balance heuristic on real scenes: per scene and method, the
 //! estimator variance (across K independent runs, per pixel, in luminance, averaged over the
-//! pixels), the CPU time of a run (preprocess and render, one thread) and the efficiency
-//! 1/(variance × time), each as a ratio to balance's with a 95 % bootstrap interval. Runs are
-//! interleaved (round k renders every method with seed k) so that the load of a shared machine
-//! hits every method alike. docs/integrators.md quotes its tables.
+//! pixels; camera rays through the pixel centres, as `lumis study`), the CPU time of a run
+//! (preprocess and render, one thread) and the efficiency 1/(variance × time), each as a ratio
+//! to balance's with a 95 % bootstrap interval. Runs are interleaved (round k renders every
+//! method with seed k) so that the load of a shared machine hits every method alike.
+//! docs/integrators.md quotes its tables.
 //!
 //! ```text
 //! cargo bench --bench methods -- [--runs K] [--size W] [--samples N] [--spp S] SCENE...
@@ -137,6 +138,9 @@ fn run(
         format!("film.height={}", o.size),
         format!("sampler.spp={}", o.spp),
         format!("sampler.seed={}", 1000 + seed),
+        // Every run shades the same points (as `lumis study`): the variance is the lighting's,
+        // not the camera jitter's, which is the same for every method.
+        "sampler.jitter=false".to_string(),
         format!("integrator.type={}", method.1),
         format!("integrator.samples={}", o.samples),
     ];
