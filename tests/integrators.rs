@@ -11,9 +11,16 @@ fn repo_path(relative: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
+/// Renders as `lumis render` does: the integrator's `preprocess` (the pilot passes of
+/// `variance_aware` and `pooled_alpha`, the cost measurement of `cost_alpha`) first.
 fn render(path: &Path, overrides: &[String]) -> lumis::film::Film {
     let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
-    common::render(path, &overrides, 2)
+    let mut loaded =
+        common::load(path, &overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    loaded.integrator.preprocess(&loaded.scene);
+    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
+        .expect("render")
+        .0
 }
 
 /// Paired test of equal means: under "both unbiased" the per-pixel differences d_p are
@@ -98,6 +105,75 @@ fn every_integrator_converges_to_the_same_mean() {
                 "{name}: {integrator} differs from balance by z = {z:.2}"
             );
         }
+    }
+}
+
+/// MIS compensation of an environment map (sampling it from max(Y − Ȳ, Ȳ/100)) changes the
+/// light technique's density, not the integral: every registered integrator with a compensated
+/// map converges to the mean of `balance` with the plain map, on both env-map scenes (|z| < 3).
+#[test]
+fn every_integrator_with_a_compensated_env_map_converges_to_the_same_mean() {
+    let (_dir, mirror) = mirror_scene();
+    let scenes = [
+        ("glossy + env map", repo_path("scenes/envmap.ron")),
+        ("mirror + env map", mirror),
+    ];
+    for (name, path) in &scenes {
+        let base = |seed: usize, integrator: &str| {
+            vec![
+                "film.width=24".to_string(),
+                "film.height=18".to_string(),
+                "sampler.spp=2".to_string(),
+                format!("sampler.seed={seed}"),
+                format!("integrator.type={integrator}"),
+                format!("integrator.{}=16", mis::SAMPLES),
+            ]
+        };
+        let reference = render(path, &base(100, balance::NAME));
+        for (i, integrator) in integrators().into_iter().enumerate() {
+            let mut overrides = base(200 + i, integrator);
+            overrides.push("emitters[0].compensation=true".to_string());
+            let film = render(path, &overrides);
+            let z = z_statistic(&film, &reference);
+            assert!(
+                z.abs() < 3.0,
+                "{name}: {integrator} with compensation differs from balance by z = {z:.2}"
+            );
+        }
+    }
+}
+
+/// Every registered integrator (with its `preprocess`, so the pilot-based methods run their
+/// pilots) on a Lambertian floor under a sphere light, seen at (nearly) one point: the mean over
+/// the 64 independent pixel estimates is within 4 standard errors of the analytic ρ L (r/d)²
+/// (E = π L (r/d)² on the sphere's axis).
+#[test]
+fn every_integrator_gives_the_analytic_radiance_under_a_sphere_light() {
+    let (r, d, radiance, rho) = (0.25f64, 2.0f64, 10.0f64, 0.5f64);
+    let text = format!(
+        r#"Scene(
+    camera: (position: (0.6, 1.0, -1.2), target: (0, 0, 0), fov: 0.01),
+    film: (width: 8, height: 8),
+    sampler: (spp: 4, seed: 3),
+    integrator: (type: "balance", samples: 256),
+    bsdfs: {{ "grey": (type: "diffuse", reflectance: {rho}) }},
+    shapes: [
+        (type: "rectangle", bsdf: "grey", transform: (scale: (10, 10, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        (type: "sphere", bsdf: "grey", radius: {r}, center: (0, {d}, 0), emitter: (type: "area", radiance: {radiance})),
+    ],
+)"#
+    );
+    let (_dir, path) = scene_file("sphere.ron", &text);
+    let expected = rho * radiance * (r / d).powi(2);
+    for name in integrators() {
+        let film = render(&path, &[format!("integrator.type={name}")]);
+        let values: Vec<f64> = film.color.iter().map(|c| c.y as f64).collect();
+        let (mean, se) = common::mean_and_standard_error(&values);
+        assert!(se < 0.05 * expected, "{name}: too noisy to test: se {se}");
+        assert!(
+            (mean - expected).abs() < 4.0 * se,
+            "{name}: mean {mean} vs {expected} (se {se})"
+        );
     }
 }
 

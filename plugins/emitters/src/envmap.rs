@@ -7,6 +7,7 @@
 //! - `interpolation` (choice, default `nearest`, or `bilinear`): how radiance varies between
 //!   pixels (below).
 //! - `orientation` (choice, default `lumis`, or `mitsuba`): which way the map faces (below).
+//! - `compensation` (bool, default false): MIS compensation (below).
 //!
 //! Mapping (`orientation: "lumis"`): the top row is straight up (+y), the bottom row straight
 //! down; the image's centre column looks toward −z, its left edge toward +z and its first quarter
@@ -28,6 +29,16 @@
 //! bilinear density's marginal and conditional (both linear) in closed form. `pdf` is that
 //! density exactly, w(u, v) / ∫w / (2π² sin θ), the same as Mitsuba's `envmap` samples with.
 //! The map must then be at least 2 pixels high.
+//!
+//! `compensation: true` (Karlík, Šik, Vévoda, Skřivánek and Křivánek, "MIS compensation:
+//! optimizing sampling techniques in multiple importance sampling", SIGGRAPH Asia 2019; as
+//! pbrt-v4's `ImageInfiniteLight`): the map is sampled from max(Y − Ȳ, Ȳ/100) instead of its
+//! luminance Y, Ȳ the mean luminance over the sphere (solid-angle weighted). Where the map is
+//! below its mean, BSDF sampling, combined with light sampling by MIS, already does well; taking
+//! those directions away from light sampling spends its samples on the bright parts. The floor
+//! (ours; pbrt-v4 uses 0) keeps every direction with radiance reachable by light sampling, so
+//! that light sampling alone (`light`) stays unbiased. A constant map is then sampled uniformly.
+//! Meant for MIS with BSDF sampling; off by default.
 //!
 //! Pixels that are not valid radiance — negative (lossy compression leaves small negative
 //! values) or not finite — are read as zero in that channel.
@@ -67,6 +78,8 @@ pub struct MapSettings {
     pub rotation_degrees: f32,
     pub interpolation: Interpolation,
     pub orientation: Orientation,
+    /// Sample from max(Y − Ȳ, Ȳ/100) instead of Y (MIS compensation).
+    pub compensation: bool,
 }
 
 impl Default for MapSettings {
@@ -76,6 +89,7 @@ impl Default for MapSettings {
             rotation_degrees: 0.0,
             interpolation: Interpolation::Nearest,
             orientation: Orientation::Lumis,
+            compensation: false,
         }
     }
 }
@@ -179,13 +193,26 @@ impl EnvironmentMap {
                 }
             }));
         }
+        // sin θ of each row, where the sampling weights are taken.
+        let row_sin: Vec<f32> = match settings.interpolation {
+            Interpolation::Nearest => (0..height)
+                .map(|y| (PI * (y as f32 + 0.5) / height as f32).sin())
+                .collect(),
+            Interpolation::Bilinear => (0..height)
+                .map(|y| (PI * y as f32 / (height - 1).max(1) as f32).sin().max(0.0))
+                .collect(),
+        };
+        let mut sampled: Vec<f32> = pixels.iter().map(|&p| luminance(p)).collect();
+        if settings.compensation {
+            compensate(&mut sampled, &row_sin, width);
+        }
         let sampling = match settings.interpolation {
             Interpolation::Nearest => {
                 let weights: Vec<f32> = (0..height)
                     .flat_map(|y| {
-                        let sin_theta = (PI * (y as f32 + 0.5) / height as f32).sin();
-                        let pixels = &pixels;
-                        (0..width).map(move |x| luminance(pixels[y * width + x]) * sin_theta)
+                        let sampled = &sampled;
+                        let sin_theta = row_sin[y];
+                        (0..width).map(move |x| sampled[y * width + x] * sin_theta)
                     })
                     .collect();
                 Sampling::Nearest(Distribution2D::new(&weights, width, height))
@@ -197,7 +224,7 @@ impl EnvironmentMap {
                          and last rows sit on the poles); this one is {width}x{height}"
                     ));
                 }
-                Sampling::Bilinear(BilinearWarp::new(&pixels, width, height))
+                Sampling::Bilinear(BilinearWarp::new(&sampled, &row_sin, width))
             }
         };
         let (sin, cos) = settings.rotation_degrees.to_radians().sin_cos();
@@ -342,12 +369,31 @@ impl EnvironmentMap {
     }
 }
 
+/// Replaces the luminances `sampled` (rows of `width`, row `y` at sin θ = `row_sin[y]`) by
+/// max(Y − Ȳ, Ȳ/100), Ȳ their solid-angle-weighted mean; a black map stays black.
+fn compensate(sampled: &mut [f32], row_sin: &[f32], width: usize) {
+    let (mut sum, mut area) = (0.0f64, 0.0f64);
+    for (row, &sin_theta) in sampled.chunks(width).zip(row_sin) {
+        sum += sin_theta as f64 * row.iter().map(|&y| y as f64).sum::<f64>();
+        area += sin_theta as f64 * width as f64;
+    }
+    if !(sum > 0.0 && area > 0.0) {
+        return;
+    }
+    let mean = (sum / area) as f32;
+    for y in sampled.iter_mut() {
+        *y = (*y - mean).max(0.01 * mean);
+    }
+}
+
 impl BilinearWarp {
-    fn new(pixels: &[Rgb], width: usize, height: usize) -> Option<Self> {
+    /// From the luminances to sample by (`sampled`, rows of `width`) and each row's sin θ.
+    fn new(sampled: &[f32], row_sin: &[f32], width: usize) -> Option<Self> {
+        let height = row_sin.len();
         let weights: Vec<f32> = (0..height)
             .flat_map(|y| {
-                let sin_theta = (PI * y as f32 / (height - 1) as f32).sin().max(0.0);
-                (0..width).map(move |x| luminance(pixels[y * width + x]) * sin_theta)
+                let sin_theta = row_sin[y];
+                (0..width).map(move |x| sampled[y * width + x] * sin_theta)
             })
             .collect();
         let patch_weights: Vec<f32> = (0..height - 1)
@@ -443,6 +489,14 @@ static PARAMS: &[ParamSpec] = &[
         unit: "",
         description: "lumis: the map's centre column looks toward −z; mitsuba: toward +z, as Mitsuba 3 (a half turn about y)",
     },
+    ParamSpec {
+        name: "compensation",
+        kind: ParamKind::Bool {
+            default: Some(false),
+        },
+        unit: "",
+        description: "MIS compensation (Karlík et al. 2019): sample from max(Y − mean Y, mean Y / 100) instead of the luminance Y, for MIS with BSDF sampling",
+    },
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
@@ -459,6 +513,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
             "mitsuba" => Orientation::Mitsuba,
             _ => Orientation::Lumis,
         },
+        compensation: params.bool("compensation")?,
     };
     let image = read_exr_rgb(&path)
         .map_err(|e| PluginError::Invalid(format!("{}: {e}", params.plugin())))?;
@@ -561,5 +616,102 @@ mod tests {
             r.to_direction(Vec2::new(0.5, 0.5))
                 .abs_diff_eq(-Vec3::X, 1e-6)
         );
+    }
+
+    /// A map with a smooth gradient, a bright spot and a dim band: parts above and below its
+    /// mean.
+    fn varied_map(settings: &MapSettings) -> EnvironmentMap {
+        let (w, h) = (48, 24);
+        let pixels = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let spot = if (x - 30.0).abs() < 3.0 && (y - 8.0).abs() < 2.0 {
+                    40.0
+                } else {
+                    0.0
+                };
+                Rgb::new(0.2 + 0.02 * x + spot, 0.5 + spot, 0.1 * y + spot)
+            })
+            .collect();
+        EnvironmentMap::with_settings(w, h, pixels, settings).unwrap()
+    }
+
+    /// Compensated sampling has the density `pdf_direction` reports (chi-square, both
+    /// interpolations), and it differs from uncompensated sampling as intended: relatively more
+    /// density on the bright spot, the floor Ȳ/100 (relative to the map's mean) elsewhere.
+    #[test]
+    fn compensated_sampling_matches_its_pdf() {
+        let r = ReferencePoint {
+            position: Vec3::ZERO,
+        };
+        let mut outcomes = Vec::new();
+        for interpolation in [Interpolation::Nearest, Interpolation::Bilinear] {
+            let settings = MapSettings {
+                interpolation,
+                compensation: true,
+                ..MapSettings::default()
+            };
+            let map = varied_map(&settings);
+            let plain = varied_map(&MapSettings {
+                interpolation,
+                ..MapSettings::default()
+            });
+            let test = lumis_core::chi2::Chi2Test::default();
+            outcomes.push((
+                format!("compensated {interpolation:?}"),
+                test.run(
+                    |s| map.sample_direction(&r, s.next_2d()).map(|ls| ls.wi),
+                    |wi| map.pdf_direction(&r, wi, None) as f64,
+                ),
+            ));
+            // The spot's centre gains density, a dim direction loses it.
+            let spot = map.to_direction(Vec2::new(30.5 / 48.0, 8.5 / 24.0));
+            let dim = map.to_direction(Vec2::new(2.5 / 48.0, 1.5 / 24.0));
+            let pdf = |m: &EnvironmentMap, d| m.pdf_direction(&r, d, None);
+            assert!(pdf(&map, spot) > pdf(&plain, spot), "{interpolation:?}");
+            assert!(pdf(&map, dim) < pdf(&plain, dim), "{interpolation:?}");
+            assert!(
+                pdf(&map, dim) > 0.0,
+                "{interpolation:?}: the floor keeps it reachable"
+            );
+        }
+        let alpha = lumis_core::chi2::sidak(0.01, outcomes.len());
+        for (name, outcome) in &outcomes {
+            outcome.assert_passes(alpha, name);
+        }
+    }
+
+    /// A constant map is all at its mean: compensated, every pixel has the same (floor) weight,
+    /// so it is sampled as the plain map is, uniformly over the sphere's cells.
+    #[test]
+    fn a_constant_map_is_sampled_as_without_compensation() {
+        let r = ReferencePoint {
+            position: Vec3::ZERO,
+        };
+        for interpolation in [Interpolation::Nearest, Interpolation::Bilinear] {
+            let make = |compensation| {
+                let settings = MapSettings {
+                    interpolation,
+                    compensation,
+                    ..MapSettings::default()
+                };
+                EnvironmentMap::with_settings(16, 8, vec![Rgb::splat(2.0); 128], &settings).unwrap()
+            };
+            let (compensated, plain) = (make(true), make(false));
+            for d in [
+                Vec3::X,
+                Vec3::new(0.3, -0.5, 0.8).normalize(),
+                Vec3::new(0.1, 0.9, -0.2).normalize(),
+            ] {
+                let (a, b) = (
+                    compensated.pdf_direction(&r, d, None),
+                    plain.pdf_direction(&r, d, None),
+                );
+                assert!(
+                    b > 0.0 && (a / b - 1.0).abs() < 1e-4,
+                    "{interpolation:?} {d}: {a} vs {b}"
+                );
+            }
+        }
     }
 }

@@ -4,7 +4,9 @@
 //! shared estimator, the weighting and the observers for each.
 
 use crate::aovs::LightTally;
-use crate::estimator::{SampleRecord, ShadingPoint, draw_bsdf_samples, draw_light_samples};
+use crate::estimator::{
+    Densities, SampleRecord, ShadingPoint, draw_bsdf_samples, draw_light_samples,
+};
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
 use glam::UVec2;
@@ -97,6 +99,8 @@ pub struct LightSampling<'a> {
     point: &'a ShadingPoint<'a>,
     light: usize,
     pixel: UVec2,
+    /// Index of the camera sample among the pixel's.
+    camera_sample: u32,
     samples: u32,
     sampler: &'a mut Sampler,
     buffers: &'a mut PhaseBuffers,
@@ -123,6 +127,7 @@ impl<'a> LightSampling<'a> {
             point,
             light,
             pixel,
+            camera_sample: 0,
             samples,
             sampler,
             buffers,
@@ -137,6 +142,20 @@ impl<'a> LightSampling<'a> {
             tally: Some(tally),
             ..self
         }
+    }
+
+    /// For camera sample `index` of the pixel (0 unless set).
+    pub fn with_camera_sample(self, index: u32) -> Self {
+        LightSampling {
+            camera_sample: index,
+            ..self
+        }
+    }
+
+    /// Index of the camera sample among the pixel's (a pilot pass in `preprocess` shades camera
+    /// sample 0's point, whose estimate may reuse the pilot's samples).
+    pub fn camera_sample(&self) -> u32 {
+        self.camera_sample
     }
 
     /// N, the samples the integrator gives each light per camera sample.
@@ -178,8 +197,30 @@ impl<'a> LightSampling<'a> {
         } = &mut *self.buffers;
         records.clear();
         let (scene, point, light) = (self.scene, self.point, self.light);
-        draw_bsdf_samples(scene, point, light, split.n_bsdf, self.sampler, records);
-        draw_light_samples(scene, point, light, split.n_light, self.sampler, records);
+        let densities = if weighting.needs_both_densities() {
+            Densities::Both
+        } else {
+            Densities::Lit
+        };
+        let sampler = &mut *self.sampler;
+        draw_bsdf_samples(
+            scene,
+            point,
+            light,
+            split.n_bsdf,
+            sampler,
+            records,
+            densities,
+        );
+        draw_light_samples(
+            scene,
+            point,
+            light,
+            split.n_light,
+            sampler,
+            records,
+            densities,
+        );
         contributions.clear();
         contributions.resize(records.len(), Rgb::ZERO);
         let phase = Phase {

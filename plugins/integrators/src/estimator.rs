@@ -19,6 +19,7 @@ use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
+use lumis_core::scene::shapes::ShapeGeometry;
 
 /// A surface point seen by the camera, with its shading frame turned toward the viewer
 /// (surfaces are two-sided).
@@ -88,10 +89,13 @@ impl<'a> ShadingPoint<'a> {
 /// samples its technique drew.
 ///
 /// Of a black sample (f = 0) only the density of the technique that drew it is known (0 if it
-/// drew no direction); the other technique's density is not computed and is 0 in the record: it
-/// would cost a pdf evaluation, or, for a BSDF ray that hits something else first, a test
-/// against the light itself. No method so far needs it; one that does (optimal MIS weights sum
-/// p_i p_k / p_mix² over every sample) must have the estimator compute it.
+/// drew no direction), and the other technique's density is 0 in the record, unless the phase
+/// was drawn with [`Densities::Both`] (a weighting that asks for it, such as optimal MIS
+/// weights, which sum p_i p_k / p_mix² over every sample): then the other density is computed
+/// for every record that has a direction (a pdf evaluation, or, for a BSDF ray that meets
+/// something else first, the light intersected on its own). A record with no direction (its
+/// technique's density 0) stands for the technique's failed draws, which the light's or BSDF's
+/// sampling routine returns with some probability and which no other technique produces.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SampleRecord {
     /// The integrand f = BSDF · |cos θ| · L_e · V in the sample's direction: zero when the
@@ -118,6 +122,103 @@ impl SampleRecord {
     }
 }
 
+/// Which densities the records of a phase hold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Densities {
+    /// Both densities for samples that reach the light (f ≠ 0), only the drawing technique's
+    /// for black ones: all that the heuristics and the α estimators need, at no extra cost.
+    Lit,
+    /// Both densities for every sample that has a direction, black ones included.
+    Both,
+}
+
+/// The shape whose area emitter is light `light`, if it is one.
+fn shape_of_light(scene: &Scene, light: usize) -> Option<usize> {
+    scene
+        .shape_emitter
+        .iter()
+        .position(|e| e.is_some_and(|e| e as usize == light))
+}
+
+/// Where `ray` meets the surface of light `light` (shape `shape`) first, ignoring every other
+/// surface: the closest triangle (Möller–Trumbore) or sphere hit.
+fn hit_on_light(scene: &Scene, shape: usize, ray: &Ray) -> Option<EmitterHit> {
+    let d = ray.direction;
+    match &scene.geometry.shapes()[shape] {
+        ShapeGeometry::Sphere(s) => {
+            let oc = ray.origin - s.center;
+            let (a, half_b) = (d.length_squared(), oc.dot(d));
+            let c = oc.length_squared() - s.radius * s.radius;
+            let discriminant = half_b * half_b - a * c;
+            if discriminant < 0.0 {
+                return None;
+            }
+            let root = discriminant.sqrt();
+            let t = [(-half_b - root) / a, (-half_b + root) / a]
+                .into_iter()
+                .find(|&t| t > 0.0 && t < ray.t_max)?;
+            let position = ray.origin + t * d;
+            Some(EmitterHit {
+                position,
+                normal: (position - s.center).normalize_or_zero(),
+                distance: t * d.length(),
+            })
+        }
+        ShapeGeometry::Mesh(mesh) => {
+            let mut best: Option<(f32, Vec3)> = None;
+            for i in 0..mesh.indices.len() {
+                let [p0, p1, p2] = mesh.triangle(i);
+                let (e1, e2) = (p1 - p0, p2 - p0);
+                let pv = d.cross(e2);
+                let det = e1.dot(pv);
+                if det == 0.0 {
+                    continue;
+                }
+                let inv = 1.0 / det;
+                let tv = ray.origin - p0;
+                let u = tv.dot(pv) * inv;
+                let qv = tv.cross(e1);
+                let v = d.dot(qv) * inv;
+                let t = e2.dot(qv) * inv;
+                let closer = best.is_none_or(|(b, _)| t < b);
+                if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < ray.t_max && closer {
+                    best = Some((t, e1.cross(e2).normalize_or_zero()));
+                }
+            }
+            best.map(|(t, normal)| EmitterHit {
+                position: ray.origin + t * d,
+                normal,
+                distance: t * d.length(),
+            })
+        }
+    }
+}
+
+/// The density with which sampling light `light` produces the direction of `ray` (a BSDF
+/// sample that did not reach the light: it met another surface first, or missed): the light is
+/// intersected on its own, occluders ignored. Where the light does not emit toward the ray's
+/// origin the density is 0, as light sampling discards such directions (a light of zero
+/// radiance, whose estimate is 0 whatever the weights, also gets 0).
+fn light_density_toward(
+    scene: &Scene,
+    light: usize,
+    light_shape: Option<usize>,
+    reference: &ReferencePoint,
+    ray: &Ray,
+) -> f32 {
+    let emitter = scene.emitters[light].as_ref();
+    if scene.environment == Some(light) {
+        return emitter.pdf_direction(reference, ray.direction, None);
+    }
+    let Some(hit) = light_shape.and_then(|shape| hit_on_light(scene, shape, ray)) else {
+        return 0.0;
+    };
+    if emitter.eval(ray.direction, Some(&hit)) == Rgb::ZERO {
+        return 0.0;
+    }
+    emitter.pdf_direction(reference, ray.direction, Some(&hit))
+}
+
 /// Where a BSDF-sampled ray reaches light `light`, if it does: the emitter hit (None for the
 /// environment) and the radiance arriving.
 fn reaches_light(scene: &Scene, light: usize, ray: &Ray) -> Option<(Option<EmitterHit>, Rgb)> {
@@ -139,8 +240,9 @@ fn reaches_light(scene: &Scene, light: usize, ray: &Ray) -> Option<(Option<Emitt
     }
 }
 
-/// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records.
-/// Each sample takes three numbers from `sampler` (lobe choice, then direction), drawn or not.
+/// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
+/// with the densities `densities` asks for. Each sample takes three numbers from `sampler`
+/// (lobe choice, then direction), drawn or not.
 pub fn draw_bsdf_samples(
     scene: &Scene,
     sp: &ShadingPoint,
@@ -148,10 +250,17 @@ pub fn draw_bsdf_samples(
     count: u32,
     sampler: &mut Sampler,
     records: &mut Vec<SampleRecord>,
+    densities: Densities,
 ) {
     let emitter = scene.emitters[light].as_ref();
     let reference = ReferencePoint {
         position: sp.hit.position,
+    };
+    let both = densities == Densities::Both;
+    let light_shape = if both {
+        shape_of_light(scene, light)
+    } else {
+        None
     };
     for _ in 0..count {
         let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
@@ -165,21 +274,38 @@ pub fn draw_bsdf_samples(
             ..SampleRecord::default()
         };
         let wi = sp.frame.to_world(s.wi);
+        let ray = sp.hit.spawn_ray(wi);
+        // A black sample's light density, when asked for (a Dirac sample has none to match).
+        let black_of_both = || SampleRecord {
+            p_light: light_density_toward(scene, light, light_shape, &reference, &ray),
+            ..black
+        };
+        let black = || {
+            if both && !s.delta {
+                black_of_both()
+            } else {
+                black
+            }
+        };
         if !sp.reflects_toward(wi) {
-            records.push(black);
+            records.push(black());
             continue;
         }
-        let Some((hit, le)) = reaches_light(scene, light, &sp.hit.spawn_ray(wi)) else {
-            records.push(black);
+        let Some((hit, le)) = reaches_light(scene, light, &ray) else {
+            records.push(black());
             continue;
         };
         records.push(if le == Rgb::ZERO {
-            black
+            // The light does not emit this way: light sampling never produces the direction.
+            SampleRecord {
+                p_light: 0.0,
+                ..black()
+            }
         } else if s.delta {
             // The Dirac densities cancel: f / p_B is the sample's weight times L_e.
             SampleRecord {
                 f: s.weight * le,
-                ..black
+                ..black()
             }
         } else {
             SampleRecord {
@@ -192,8 +318,8 @@ pub fn draw_bsdf_samples(
     }
 }
 
-/// Draws `count` samples of non-delta light `light` for `sp` and appends their records. Each
-/// sample takes two numbers from `sampler`.
+/// Draws `count` samples of non-delta light `light` for `sp` and appends their records, with
+/// the densities `densities` asks for. Each sample takes two numbers from `sampler`.
 pub fn draw_light_samples(
     scene: &Scene,
     sp: &ShadingPoint,
@@ -201,6 +327,7 @@ pub fn draw_light_samples(
     count: u32,
     sampler: &mut Sampler,
     records: &mut Vec<SampleRecord>,
+    densities: Densities,
 ) {
     let emitter = scene.emitters[light].as_ref();
     let reference = ReferencePoint {
@@ -213,8 +340,14 @@ pub fn draw_light_samples(
         };
         let f = sp.eval_toward(&ls);
         if f == Rgb::ZERO || !sp.sees(scene, &ls) {
+            let p_bsdf = if densities == Densities::Both {
+                sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi))
+            } else {
+                0.0
+            };
             records.push(SampleRecord {
                 p_light: ls.pdf,
+                p_bsdf,
                 ..SampleRecord::default()
             });
             continue;

@@ -9,16 +9,24 @@ pub mod allocation;
 pub mod aovs;
 pub mod estimator;
 pub mod mis;
+pub mod moments;
+pub mod one_point;
 pub mod phase;
+pub mod pilot;
 pub mod weighting;
 
 pub mod alpha;
 pub mod balance;
 pub mod bsdf;
+pub mod cost_alpha;
 pub mod cutoff;
+pub mod exact_alpha;
 pub mod light;
 pub mod max;
+pub mod optimal_mis;
+pub mod pooled_alpha;
 pub mod power;
+pub mod variance_aware;
 
 /// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.
 #[inline(never)]

@@ -111,7 +111,8 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
                     self.samples,
                     &mut sample.sampler,
                     buffers,
-                );
+                )
+                .with_camera_sample(sample.index);
                 if self.aovs.any() {
                     sampling = sampling.with_tally(&mut tally);
                 }

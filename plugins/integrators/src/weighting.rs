@@ -24,6 +24,13 @@ pub trait Weighting: Send + Sync {
     /// sum, the phase's estimate.
     fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb;
 
+    /// Whether `weigh` needs both densities of every record, black ones included
+    /// ([`crate::estimator::Densities::Both`]): asked once per phase; the default, false, costs
+    /// no pdf evaluation for samples that do not reach the light.
+    fn needs_both_densities(&self) -> bool {
+        false
+    }
+
     /// Work once per scene before rendering (e.g. a pilot pass that measures per-technique
     /// statistics per block of pixels, which `weigh` then reads through `phase.pixel`).
     fn preprocess(&mut self, _scene: &Scene) {}
@@ -57,24 +64,28 @@ pub trait Heuristic: Send + Sync {
 pub struct PerSample<H>(pub H);
 
 impl<H: Heuristic> PerSample<H> {
-    /// Weighs the records of one technique (n_own samples, against n_other of the other),
-    /// adding their contributions to `value` in order. `products` gives a record's (own, other)
-    /// densities. Weights are computed four records at a time.
+    /// Weighs the records of one technique (n_own samples), adding their contributions to
+    /// `value` in order. The heuristic compares `k_own` · p_own with `k_other` · p_other
+    /// (`densities` gives a record's (own, other) densities); a record contributes w f /
+    /// (n_own p_own). Weights are computed four records at a time.
     #[inline]
     fn weigh_technique(
         &self,
         records: &[SampleRecord],
-        (n_own, n_other): (f32, f32),
+        (k_own, k_other): (f32, f32),
+        n_own: f32,
         densities: impl Fn(&SampleRecord) -> (f32, f32),
         contributions: &mut [Rgb],
         value: &mut Rgb,
     ) {
+        // w / (n p) = (w / (k p)) · (k / n): exactly w / (k p) when k = n.
+        let own_factor = k_own / n_own;
         for (chunk, out) in records.chunks(4).zip(contributions.chunks_mut(4)) {
             // Lanes past the end hold equal products, which weigh ½ and are not used.
             let (mut mine, mut other) = ([1.0f32; 4], [1.0f32; 4]);
             for (i, r) in chunk.iter().enumerate() {
                 let (p_own, p_other) = densities(r);
-                (mine[i], other[i]) = (n_own * p_own, n_other * p_other);
+                (mine[i], other[i]) = (k_own * p_own, k_other * p_other);
             }
             let (mine, other) = (Vec4::from_array(mine), Vec4::from_array(other));
             let w = Vec4::select(
@@ -83,7 +94,7 @@ impl<H: Heuristic> PerSample<H> {
                 self.0.weight4(mine, other),
             );
             // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
-            let scale = (w / mine).to_array();
+            let scale = (w / mine * own_factor).to_array();
             for ((r, c), scale) in chunk.iter().zip(out).zip(scale) {
                 if r.is_black() {
                     continue;
@@ -93,30 +104,40 @@ impl<H: Heuristic> PerSample<H> {
             }
         }
     }
-}
 
-impl<H: Heuristic> Weighting for PerSample<H> {
-    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
+    /// The phase weighed with each technique's n·p multiplied by a factor, `factors` = (c_B,
+    /// c_L): w_t = h(c_t n_t p_t, c_o n_o p_o), e.g. variance-aware weights (factors 1: the
+    /// heuristic itself, bit for bit). Contributions and their sum as [`Weighting::weigh`].
+    pub fn weigh_scaled(&self, phase: &Phase, contributions: &mut [Rgb], factors: [f32; 2]) -> Rgb {
         let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
+        let (k_b, k_l) = (factors[0] * n_b, factors[1] * n_l);
         let (bsdf, light) = contributions.split_at_mut(phase.split.n_bsdf as usize);
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
         let mut value = Rgb::ZERO;
         self.weigh_technique(
             phase.bsdf_records(),
-            (n_b, n_l),
+            (k_b, k_l),
+            n_b,
             |r| (r.p_bsdf, r.p_light),
             bsdf,
             &mut value,
         );
         self.weigh_technique(
             phase.light_records(),
-            (n_l, n_b),
+            (k_l, k_b),
+            n_l,
             |r| (r.p_light, r.p_bsdf),
             light,
             &mut value,
         );
         value
+    }
+}
+
+impl<H: Heuristic> Weighting for PerSample<H> {
+    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
+        self.weigh_scaled(phase, contributions, [1.0, 1.0])
     }
 }
 

@@ -1,0 +1,135 @@
+//! `cost_alpha`: direct lighting with the fraction α of BSDF samples that maximises efficiency
+//! rather than minimising variance: per shading point and light, α minimises the pilot's
+//! estimate of variance × cost, V̂(α) · (α c_B + (1 − α) c_L), with c_B and c_L the measured
+//! costs of one BSDF and one light sample of that light. V̂ is the variance of the mixture
+//! estimator, m̂(α) − μ̂² (as `exact_alpha`, μ̂² estimated without bias from the pilot), or of the
+//! stratified estimator the integrators use. Balance weights for the realised counts. Delta
+//! lights take one light sample each.
+//!
+//! The costs are measured once per render, in `preprocess`, on the scene itself: one thread
+//! times batches of 8 samples of each technique of each light at the shading points of a grid
+//! of up to 48 × 48 pixels, alternating which technique goes first, twice (the first round
+//! warms the caches), the slowest 1 % of batches dropped; a sample's cost is what the render
+//! pays for it: its direction, its ray, the other technique's density (docs/integrators.md has
+//! the measured values and their spread). Measured costs make α, and so the image, depend on
+//! the machine's timing (still unbiased); `cost_ratio` fixes them instead.
+//!
+//! Parameters:
+//! - `samples` (integer, default 256, in [1, 1048576]): N, samples per light per camera sample.
+//! - `mode` (choice, default "integrated"): "integrated" — M samples at α = ½ give L̂₁ and α,
+//!   the other N − M at α give L̂₂, and the estimate is (M·L̂₁ + (N − M)·L̂₂)/N; "preprocessed" —
+//!   M pilot samples at α = ½ give α only, then N fresh samples at α.
+//! - `alpha_samples` (integer, default 0 = N/2 integrated, 4096 preprocessed): M.
+//! - `clamp` (interval, default (0.025, 0.975), within [0, 1]): the interval α is chosen in.
+//! - `variance` (choice, default "mixture"): "mixture" or "stratified", the variance V̂ that is
+//!   multiplied by the cost (see `exact_alpha`).
+//! - `cost_ratio` (float, default 0, in [0, 1000]): c_B / c_L for every light; 0 measures the
+//!   costs of each light on the scene.
+//! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
+
+use crate::balance::Balance;
+use crate::exact_alpha::{
+    ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, VARIANCE_SPEC, read_clamp,
+    read_mode, read_stratified,
+};
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::moments::{Objective, PilotSamples};
+use crate::pilot::{SampleCosts, measure_costs};
+use crate::weighting::PerSample;
+use lumis_core::integrator::Integrator;
+use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::IntegratorPlugin;
+use lumis_core::scene::Scene;
+
+/// The plugin's name in scene files.
+pub const NAME: &str = "cost_alpha";
+/// Parameter: c_B / c_L, or 0 to measure the costs.
+pub const COST_RATIO: &str = "cost_ratio";
+/// Shading points per side of the grid the costs are measured on.
+const COST_GRID: u32 = 48;
+/// Samples per timed batch.
+const COST_BATCH: u32 = 8;
+
+static PARAMS: &[ParamSpec] = &[
+    SAMPLES_SPEC,
+    MODE_SPEC,
+    ALPHA_SAMPLES_SPEC,
+    CLAMP_SPEC,
+    VARIANCE_SPEC,
+    ParamSpec {
+        name: COST_RATIO,
+        kind: ParamKind::Float {
+            default: Some(0.0),
+            min: 0.0,
+            max: 1000.0,
+        },
+        unit: "",
+        description: "cost of a BSDF sample over that of a light sample, for every light; 0: measured per light on the scene",
+    },
+    AOVS_SPEC,
+];
+
+/// Minimises V̂(α) · (α c_B + (1 − α) c_L) with each light's costs.
+pub struct CostAware {
+    pub stratified: bool,
+    /// c_B / c_L given for every light, or None to measure.
+    pub ratio: Option<f64>,
+    /// Per light (`scene.emitters` order), once measured or given.
+    pub costs: Vec<Option<SampleCosts>>,
+}
+
+impl AlphaRule for CostAware {
+    fn alpha(&self, pilot: &PilotSamples, light: usize, clamp: [f64; 2]) -> Option<f64> {
+        let costs = match self.ratio {
+            Some(ratio) => SampleCosts {
+                bsdf: ratio,
+                light: 1.0,
+            },
+            // Unmeasured (not preprocessed, or no shading point saw the light): equal costs.
+            None => self
+                .costs
+                .get(light)
+                .copied()
+                .flatten()
+                .unwrap_or(SampleCosts {
+                    bsdf: 1.0,
+                    light: 1.0,
+                }),
+        };
+        let objective = Objective::Cost {
+            stratified: self.stratified,
+            bsdf: costs.bsdf,
+            light: costs.light,
+        };
+        pilot.minimise(objective, clamp)
+    }
+
+    fn preprocess(&mut self, scene: &Scene) {
+        if self.ratio.is_none() {
+            self.costs = measure_costs(scene, COST_GRID, COST_BATCH);
+        }
+    }
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let mode = read_mode(params)?;
+    let clamp = read_clamp(params)?;
+    let stratified = read_stratified(params)?;
+    let ratio = params.float(COST_RATIO)? as f64;
+    let rule = CostAware {
+        stratified,
+        ratio: (ratio > 0.0).then_some(ratio),
+        costs: Vec::new(),
+    };
+    let allocation = PilotAlpha { mode, clamp, rule };
+    MisIntegrator::boxed(params, allocation, PerSample(Balance))
+}
+
+inventory::submit! {
+    IntegratorPlugin {
+        name: NAME,
+        description: "direct lighting with the α that minimises the pilot's variance times the measured cost of the samples",
+        params: PARAMS,
+        create,
+    }
+}

@@ -1,0 +1,512 @@
+//! What a pilot phase (samples of both techniques, at a known split) says about the variance of
+//! the mixture estimator at any other split α, and the α that minimises it: the exact minimum
+//! of the pilot's estimate of the second moment (`exact_alpha`), of the variance of the
+//! stratified estimator the integrators actually use, and of variance × cost (`cost_alpha`).
+//!
+//! A pilot of M samples, n_B from the BSDF and n_L from the light (β = n_B / M), is a
+//! stratified sample of p_s = β p_B + (1 − β) p_L. With y = f / p_s and r_t = p_t / p_s, the
+//! mixture q_α = α p_B + (1 − α) p_L has q_α / p_s = d(α) = r_L + α (r_B − r_L), and
+//!
+//! ```text
+//!   m̂(α)   = (1/M) Σ y² / d(α)          estimates ∫ f² / q_α, the second moment of f / q_α;
+//!   μ̂_t(α) = (1/M) Σ y r_t / d(α)       estimates ∫ f p_t / q_α, the mean of technique t's
+//!                                        samples' f / q_α (α μ̂_B + (1 − α) μ̂_L = μ̂ = (1/M) Σ y).
+//! ```
+//!
+//! Squares of means (μ², μ_t²) are estimated without bias, stratum by stratum (the pilot's
+//! samples are two independent strata), so that the noise of a small pilot does not favour one
+//! split over another.
+//!
+//! m̂ is convex in α (each term is y² / d with d linear and positive), so its minimum over an
+//! interval is found by a safeguarded Newton iteration on m̂′. With N samples at α, the mixture
+//! (one-sample) estimator has variance (m − μ²) / N, and the stratified estimator the
+//! integrators use (exactly n_B = αN BSDF samples) (m − α μ_B² − (1 − α) μ_L²) / N: smaller by
+//! α (1 − α)(μ_B − μ_L)² / N, most where the techniques see different parts of f. Neither this
+//! nor variance × cost need be convex: they are minimised on a grid refined by golden section.
+//!
+//! A Dirac BSDF sample (p_B → ∞) has r_B = 1/β, r_L = 0 and y = f_rec / β (its record's f is
+//! already divided by the Dirac density). Black records add nothing but count in M.
+
+use crate::estimator::SampleRecord;
+use crate::phase::Phase;
+use lumis_core::math::luminance;
+
+/// What is minimised over α (each divided by N, which does not move the minimum).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Objective {
+    /// The second moment m(α) of the mixture estimator, i.e. its variance m(α) − μ².
+    Mixture,
+    /// The variance of the stratified estimator, m(α) − α μ_B(α)² − (1 − α) μ_L(α)².
+    Stratified,
+    /// A variance (mixture or stratified, `stratified`) times the cost of N samples at α,
+    /// α c_B + (1 − α) c_L: the inverse of the efficiency.
+    Cost {
+        stratified: bool,
+        bsdf: f64,
+        light: f64,
+    },
+}
+
+/// Sums over the samples of one stratum (one technique's samples) of a quantity z: Σ z and
+/// Σ z².
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct StratumSums {
+    sum: f64,
+    sum_sq: f64,
+}
+
+impl StratumSums {
+    #[inline]
+    fn add(&mut self, z: f64) {
+        self.sum += z;
+        self.sum_sq += z * z;
+    }
+}
+
+/// The mean of z over a pilot of two strata (n_B BSDF samples, n_L light samples), and an
+/// unbiased estimate of its square: β² U_B + 2β(1 − β) z̄_B z̄_L + (1 − β)² U_L, with U_s =
+/// ((Σ_s z)² − Σ_s z²) / (n_s (n_s − 1)) the unbiased estimate of the square of stratum s's
+/// mean (the square of the sample mean would exceed it by the mean's variance, and bias a
+/// minimum toward the split that shrinks that variance). A stratum of fewer than two samples
+/// falls back to the square of its mean.
+fn mean_and_square(strata: [StratumSums; 2], counts: [f64; 2]) -> (f64, f64) {
+    let m = counts[0] + counts[1];
+    let mean_of = |s: StratumSums, n: f64| if n > 0.0 { s.sum / n } else { 0.0 };
+    let square_of = |s: StratumSums, n: f64| {
+        if n >= 2.0 {
+            (s.sum * s.sum - s.sum_sq) / (n * (n - 1.0))
+        } else {
+            mean_of(s, n).powi(2)
+        }
+    };
+    let (b, l) = (counts[0] / m, counts[1] / m);
+    let (mean_b, mean_l) = (mean_of(strata[0], counts[0]), mean_of(strata[1], counts[1]));
+    let mean = b * mean_b + l * mean_l;
+    let square = b * b * square_of(strata[0], counts[0])
+        + 2.0 * b * l * mean_b * mean_l
+        + l * l * square_of(strata[1], counts[1]);
+    (mean, square)
+}
+
+/// The pilot's estimates at one α.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PilotSums {
+    /// m̂(α).
+    pub second_moment: f64,
+    /// μ̂_B(α), μ̂_L(α).
+    pub mean_bsdf: f64,
+    pub mean_light: f64,
+    /// Unbiased estimates of μ_B(α)² and μ_L(α)².
+    pub square_bsdf: f64,
+    pub square_light: f64,
+}
+
+/// A pilot phase's records, read as estimates of functions of α.
+#[derive(Clone, Copy, Debug)]
+pub struct PilotSamples<'a> {
+    records: &'a [SampleRecord],
+    n_bsdf: usize,
+    /// β = n_B / M.
+    beta: f64,
+    /// 1 / M.
+    inv_count: f64,
+}
+
+impl<'a> PilotSamples<'a> {
+    /// The records of `phase`, drawn at its split.
+    pub fn new(phase: &Phase<'a>) -> Self {
+        Self::from_records(phase.records, phase.split.n_bsdf, phase.split.n_light)
+    }
+
+    /// `records`, the first `n_bsdf` drawn from the BSDF and the next `n_light` from the light.
+    pub fn from_records(records: &'a [SampleRecord], n_bsdf: u32, n_light: u32) -> Self {
+        let m = (n_bsdf + n_light).max(1) as f64;
+        PilotSamples {
+            records,
+            n_bsdf: n_bsdf as usize,
+            beta: n_bsdf as f64 / m,
+            inv_count: 1.0 / m,
+        }
+    }
+
+    /// (y, r_B, r_L) of a record, if it is not black and has a positive finite p_s.
+    #[inline]
+    fn term(&self, r: &SampleRecord) -> Option<(f64, f64, f64)> {
+        if r.is_black() {
+            return None;
+        }
+        let beta = self.beta;
+        let f = luminance(r.f) as f64;
+        if r.delta {
+            return (beta > 0.0 && f != 0.0).then(|| (f / beta, 1.0 / beta, 0.0));
+        }
+        let (p_b, p_l) = (r.p_bsdf as f64, r.p_light as f64);
+        let p_s = beta * p_b + (1.0 - beta) * p_l;
+        (p_s > 0.0 && p_s.is_finite() && f != 0.0).then(|| (f / p_s, p_b / p_s, p_l / p_s))
+    }
+
+    /// (y, r_B, r_L) of every record that is not black and has a positive finite p_s.
+    #[inline]
+    fn terms(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        self.records.iter().filter_map(|r| self.term(r))
+    }
+
+    /// The pilot's stratum sizes (n_B, n_L).
+    fn counts(&self) -> [f64; 2] {
+        let n_b = self.n_bsdf.min(self.records.len());
+        [n_b as f64, (self.records.len() - n_b) as f64]
+    }
+
+    /// μ̂ = (1/M) Σ y, the pilot's (balance) estimate of the integral, in luminance.
+    pub fn mean(&self) -> f64 {
+        self.terms().map(|(y, _, _)| y).sum::<f64>() * self.inv_count
+    }
+
+    /// μ̂ and an unbiased estimate of μ².
+    pub fn mean_and_square(&self) -> (f64, f64) {
+        let mut strata = [StratumSums::default(); 2];
+        for (i, r) in self.records.iter().enumerate() {
+            if let Some((y, _, _)) = self.term(r) {
+                strata[usize::from(i >= self.n_bsdf)].add(y);
+            }
+        }
+        mean_and_square(strata, self.counts())
+    }
+
+    /// m̂, μ̂_B, μ̂_L and the unbiased estimates of μ_B² and μ_L² at `alpha`.
+    pub fn sums(&self, alpha: f64) -> PilotSums {
+        let mut second_moment = 0.0;
+        // Per technique t (B, L), its quantity y r_t / d summed per stratum.
+        let mut z = [[StratumSums::default(); 2]; 2];
+        // A term whose q_α is 0 (α at 0 or 1, where the other technique alone has density)
+        // makes m̂ infinite, as it is.
+        for (i, r) in self.records.iter().enumerate() {
+            let Some((y, r_b, r_l)) = self.term(r) else {
+                continue;
+            };
+            let stratum = usize::from(i >= self.n_bsdf);
+            let inv = 1.0 / (r_l + alpha * (r_b - r_l));
+            second_moment += y * y * inv;
+            if r_b > 0.0 {
+                z[0][stratum].add(y * r_b * inv);
+            }
+            if r_l > 0.0 {
+                z[1][stratum].add(y * r_l * inv);
+            }
+        }
+        let counts = self.counts();
+        let (mean_bsdf, square_bsdf) = mean_and_square(z[0], counts);
+        let (mean_light, square_light) = mean_and_square(z[1], counts);
+        PilotSums {
+            second_moment: second_moment * self.inv_count,
+            mean_bsdf,
+            mean_light,
+            square_bsdf,
+            square_light,
+        }
+    }
+
+    /// m̂′(α) and m̂″(α).
+    fn second_moment_slopes(&self, alpha: f64) -> (f64, f64) {
+        let (mut d1, mut d2) = (0.0, 0.0);
+        for (y, r_b, r_l) in self.terms() {
+            let delta = r_b - r_l;
+            // Where q_α = 0 the slope is infinite, toward the technique with density there.
+            let inv = 1.0 / (r_l + alpha * delta);
+            let a = y * y * delta * inv * inv;
+            d1 -= a;
+            d2 += 2.0 * a * delta * inv;
+        }
+        (d1 * self.inv_count, d2 * self.inv_count)
+    }
+
+    /// Whether α matters at all: some record with f ≠ 0 where p_B ≠ p_L. If not (no sample saw
+    /// the light, or the densities agree), every α gives the same estimate.
+    pub fn informative(&self) -> bool {
+        self.terms().any(|(_, r_b, r_l)| r_b != r_l)
+    }
+
+    /// The α in `clamp` that minimises m̂ exactly (to 10⁻⁶), or `None` if the pilot is not
+    /// [`informative`](Self::informative). m̂ is convex: if its slope is ≥ 0 at the lower bound
+    /// or ≤ 0 at the upper, that bound; otherwise Newton steps on m̂′ = 0 kept inside a
+    /// bracket that shrinks with the sign of m̂′ (bisection when a step leaves it).
+    pub fn exact_minimum(&self, clamp: [f64; 2]) -> Option<f64> {
+        if !self.informative() {
+            return None;
+        }
+        let [mut lo, mut hi] = clamp;
+        if self.second_moment_slopes(lo).0 >= 0.0 {
+            return Some(lo);
+        }
+        if self.second_moment_slopes(hi).0 <= 0.0 {
+            return Some(hi);
+        }
+        let mut alpha = 0.5 * (lo + hi);
+        for _ in 0..60 {
+            let (d1, d2) = self.second_moment_slopes(alpha);
+            if d1 < 0.0 {
+                lo = alpha;
+            } else if d1 > 0.0 {
+                hi = alpha;
+            } else {
+                break;
+            }
+            let newton = alpha - d1 / d2;
+            let next = if newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            let converged = (next - alpha).abs() < 1e-6 || hi - lo < 1e-6;
+            alpha = next;
+            if converged {
+                break;
+            }
+        }
+        Some(alpha)
+    }
+
+    /// The objective at `alpha` (+∞ where it is infinite or undefined: at α = 0 or 1 when the
+    /// excluded technique alone reaches part of f).
+    pub fn objective(&self, objective: Objective, alpha: f64) -> f64 {
+        let value = self.objective_value(objective, alpha);
+        if value.is_nan() { f64::INFINITY } else { value }
+    }
+
+    fn objective_value(&self, objective: Objective, alpha: f64) -> f64 {
+        let s = self.sums(alpha);
+        let stratified =
+            || s.second_moment - alpha * s.square_bsdf - (1.0 - alpha) * s.square_light;
+        match objective {
+            Objective::Mixture => s.second_moment,
+            Objective::Stratified => stratified(),
+            Objective::Cost {
+                stratified: strat,
+                bsdf,
+                light,
+            } => {
+                let variance = if strat {
+                    stratified()
+                } else {
+                    s.second_moment - self.mean_and_square().1
+                };
+                variance.max(0.0) * (alpha * bsdf + (1.0 - alpha) * light)
+            }
+        }
+    }
+
+    /// The α in `clamp` that minimises `objective`, or `None` if the pilot is not
+    /// [`informative`](Self::informative): exact for [`Objective::Mixture`]; otherwise the best
+    /// of 17 evenly spaced α refined by golden section between its neighbours (to 10⁻⁴ of the
+    /// interval), as the objective need not be convex.
+    pub fn minimise(&self, objective: Objective, clamp: [f64; 2]) -> Option<f64> {
+        if objective == Objective::Mixture {
+            return self.exact_minimum(clamp);
+        }
+        if !self.informative() {
+            return None;
+        }
+        Some(minimise_on_grid(clamp, |a| self.objective(objective, a)))
+    }
+}
+
+/// The minimum over `clamp` of `f`: the best of 17 evenly spaced points, then golden section
+/// on the two intervals around it.
+pub fn minimise_on_grid(clamp: [f64; 2], f: impl Fn(f64) -> f64) -> f64 {
+    const NODES: usize = 17;
+    let [lo, hi] = clamp;
+    if hi <= lo {
+        return lo;
+    }
+    let at = |k: usize| lo + (hi - lo) * k as f64 / (NODES - 1) as f64;
+    let (mut best, mut best_value) = (0, f64::INFINITY);
+    for k in 0..NODES {
+        let v = f(at(k));
+        if v < best_value {
+            (best, best_value) = (k, v);
+        }
+    }
+    let (mut a, mut b) = (at(best.saturating_sub(1)), at((best + 1).min(NODES - 1)));
+    let ratio = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    while b - a > 1e-4 * (hi - lo) {
+        if f1 <= f2 {
+            (b, x2, f2) = (x2, x1, f1);
+            x1 = b - ratio * (b - a);
+            f1 = f(x1);
+        } else {
+            (a, x1, f1) = (x1, x2, f2);
+            x2 = a + ratio * (b - a);
+            f2 = f(x2);
+        }
+    }
+    let (x, value) = if f1 <= f2 { (x1, f1) } else { (x2, f2) };
+    // The grid node wins if the refinement found nothing lower (a minimum at a bound).
+    if value <= best_value { x } else { at(best) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lumis_core::math::Rgb;
+
+    fn record(f: f32, p_bsdf: f32, p_light: f32) -> SampleRecord {
+        SampleRecord {
+            f: Rgb::splat(f),
+            p_bsdf,
+            p_light,
+            delta: false,
+        }
+    }
+
+    /// A pilot at α = ½ whose samples follow a synthetic integrand on [0, 1]: f = 1 on [0, w],
+    /// p_B uniform, p_L a box of height 1/w on [0, w] (concentrated light), half the samples
+    /// from each. Exact second moment: ∫ f²/q_α = w² / (α w + 1 − α) (on [0, w], q_α = α + (1 −
+    /// α)/w), minimised at α = 0.
+    fn box_pilot(w: f32, n: usize) -> Vec<SampleRecord> {
+        let mut records = Vec::new();
+        for i in 0..n {
+            let x = (i as f32 + 0.5) / n as f32;
+            let inside = x < w;
+            records.push(record(
+                if inside { 1.0 } else { 0.0 },
+                1.0,
+                if inside { 1.0 / w } else { 0.0 },
+            ));
+        }
+        for i in 0..n {
+            let x = w * (i as f32 + 0.5) / n as f32;
+            records.push(record(if x < w { 1.0 } else { 0.0 }, 1.0, 1.0 / w));
+        }
+        records
+    }
+
+    #[test]
+    fn the_second_moment_matches_its_integral() {
+        let records = box_pilot(0.1, 1000);
+        let pilot = PilotSamples::from_records(&records, 1000, 1000);
+        for alpha in [0.0, 0.2, 0.5, 0.9, 1.0] {
+            let exact = 0.01 / (alpha * 0.1 + 1.0 - alpha);
+            let m = pilot.sums(alpha).second_moment;
+            assert!(
+                (m - exact).abs() < 1e-3 * exact,
+                "α {alpha}: {m} vs {exact}"
+            );
+        }
+        // The means of the techniques add up to the integral, 0.1.
+        let s = pilot.sums(0.3);
+        let mean = 0.3 * s.mean_bsdf + 0.7 * s.mean_light;
+        assert!((mean - 0.1).abs() < 1e-4 && (pilot.mean() - 0.1).abs() < 1e-4);
+    }
+
+    #[test]
+    fn the_exact_minimum_is_the_clamp_for_a_concentrated_light() {
+        let records = box_pilot(0.01, 500);
+        let pilot = PilotSamples::from_records(&records, 500, 500);
+        assert_eq!(pilot.exact_minimum([0.025, 0.975]), Some(0.025));
+    }
+
+    /// An interior minimum: f = x + 0.2 on [0, 1], p_B = 2x, p_L = 1. m(α) = ∫ (x + 0.2)² /
+    /// (2αx + 1 − α), whose minimum is found by dense search on the exact integral (Simpson).
+    #[test]
+    fn the_exact_minimum_of_an_interior_optimum_matches_quadrature() {
+        let n = 4000;
+        let mut records = Vec::new();
+        for i in 0..n {
+            let u = (i as f32 + 0.5) / n as f32;
+            let x = u.sqrt(); // p_B = 2x
+            records.push(record(x + 0.2, 2.0 * x, 1.0));
+        }
+        for i in 0..n {
+            let x = (i as f32 + 0.5) / n as f32;
+            records.push(record(x + 0.2, 2.0 * x, 1.0));
+        }
+        let pilot = PilotSamples::from_records(&records, n as u32, n as u32);
+        let exact_m = |alpha: f64| {
+            let k = 2000;
+            (0..=k)
+                .map(|j| {
+                    let x = j as f64 / k as f64;
+                    let w = if j == 0 || j == k {
+                        1.0
+                    } else if j % 2 == 1 {
+                        4.0
+                    } else {
+                        2.0
+                    };
+                    w * (x + 0.2) * (x + 0.2) / (2.0 * alpha * x + 1.0 - alpha)
+                })
+                .sum::<f64>()
+                / (3.0 * k as f64)
+        };
+        let best = minimise_on_grid([0.0, 0.99], exact_m);
+        let found = pilot.exact_minimum([0.0, 0.99]).unwrap();
+        assert!(found > 0.05 && found < 0.95, "{found}");
+        assert!((found - best).abs() < 0.01, "{found} vs {best}");
+        // The grid search on the pilot's m̂ agrees with Newton's.
+        let grid = minimise_on_grid([0.0, 0.99], |a| pilot.sums(a).second_moment);
+        assert!((grid - found).abs() < 1e-3, "{grid} vs {found}");
+    }
+
+    #[test]
+    fn uninformative_pilots_give_no_alpha() {
+        let same = [record(1.0, 2.0, 2.0), record(0.5, 1.0, 1.0)];
+        let pilot = PilotSamples::from_records(&same, 1, 1);
+        assert_eq!(pilot.exact_minimum([0.0, 1.0]), None);
+        let black = [record(0.0, 2.0, 0.0), SampleRecord::default()];
+        let pilot = PilotSamples::from_records(&black, 1, 1);
+        assert_eq!(pilot.minimise(Objective::Stratified, [0.0, 1.0]), None);
+    }
+
+    #[test]
+    fn dirac_samples_push_alpha_to_the_bsdf() {
+        let mut records = vec![
+            SampleRecord {
+                f: Rgb::splat(0.8),
+                p_bsdf: 1.0,
+                p_light: 0.0,
+                delta: true,
+            };
+            4
+        ];
+        records.extend([SampleRecord::default(); 4]);
+        let pilot = PilotSamples::from_records(&records, 4, 4);
+        assert_eq!(pilot.exact_minimum([0.025, 0.975]), Some(0.975));
+        // m(α) = (1/M) Σ (f/β)² / (α/β): 4 samples of f = 0.8 out of M = 8, β = ½.
+        let m = pilot.sums(0.5).second_moment;
+        assert!((m - 0.5 * (1.6 * 1.6) / 1.0).abs() < 1e-6, "{m}");
+    }
+
+    /// Where the techniques see different parts of f (the light sampling finds a bright spot
+    /// the BSDF misses, the BSDF a dim broad part the light samples rarely reach), the
+    /// stratified estimator's variance is lowest nearer ½ than the mixture's.
+    #[test]
+    fn the_stratified_objective_keeps_both_techniques_where_they_see_different_parts() {
+        let mut records = Vec::new();
+        // BSDF samples: a broad dim region, density 1, where the light's density is small.
+        for _ in 0..50 {
+            records.push(record(1.0, 1.0, 0.01));
+        }
+        // Light samples: a bright spot, light density 100, BSDF density 0.01.
+        for _ in 0..50 {
+            records.push(record(100.0, 0.01, 100.0));
+        }
+        let pilot = PilotSamples::from_records(&records, 50, 50);
+        let mixture = pilot.minimise(Objective::Mixture, [0.025, 0.975]).unwrap();
+        let stratified = pilot
+            .minimise(Objective::Stratified, [0.025, 0.975])
+            .unwrap();
+        let v = |a: f64| pilot.objective(Objective::Stratified, a);
+        assert!(v(stratified) <= v(mixture) + 1e-12);
+        assert!(v(stratified) <= v(0.5) + 1e-12);
+        // Cost: with light samples ten times cheaper, α moves toward the light.
+        let cheap_light = Objective::Cost {
+            stratified: true,
+            bsdf: 10.0,
+            light: 1.0,
+        };
+        let cost = pilot.minimise(cheap_light, [0.025, 0.975]).unwrap();
+        assert!(cost <= stratified + 1e-3, "{cost} vs {stratified}");
+    }
+}

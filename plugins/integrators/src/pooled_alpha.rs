@@ -1,0 +1,338 @@
+//! `pooled_alpha`: direct lighting with α chosen from pilot statistics pooled over a pixel's
+//! neighbourhood, against the pilot noise of a small per-pixel M. A pilot pass (in
+//! `preprocess`) draws M samples per light at α = ½ at camera sample 0's shading point of every
+//! pixel (docs/integrators.md, "Pilot passes"); each pixel keeps, per light, its estimate of the
+//! objective at 17 evenly spaced α in the clamp interval (or the paper's sums Î₁, Î₂); these are
+//! summed over the pixels within `radius` (a square window) whose surface is similar (same
+//! BSDF, normals within about 25°, depths within 10 %: an edge-stopping box filter); α is the
+//! minimum of the pooled objective (the best node refined by a parabola through it and its
+//! neighbours), or the paper's ½ + ¼ Î₁/Î₂. Then N samples at α per light, balance weights;
+//! camera sample 0 reuses the pilot: (M·L̂_pilot + (N − M)·L̂)/N from N − M fresh samples.
+//! Unbiased: α depends only on the pilot. Delta lights take one light sample each.
+//!
+//! Parameters:
+//! - `samples` (integer, default 256, in [1, 1048576]): N, samples per light per camera sample.
+//! - `pilot_samples` (integer, default 0 = N/8, in [0, 1048576]): M, the pilot's samples per
+//!   light per pixel (at most N).
+//! - `radius` (integer, default 2, in [0, 64]): the pooling window is (2·radius + 1)² pixels.
+//! - `objective` (choice, default "exact"): "exact" — the pooled m̂(α), the second moment of
+//!   the mixture estimator (as `exact_alpha`); "stratified" — the pooled variance of the
+//!   stratified estimator (as `exact_alpha` with `variance: "stratified"`); "second_order" — the
+//!   paper's α̂ from the pooled Î₁, Î₂.
+//! - `clamp` (interval, default (0.025, 0.975), within [0, 1]): the interval α is chosen in.
+//! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
+//!
+//! Memory: 4 · 18 bytes per pixel and light for the pilot's statistics (4 · 3 for
+//! "second_order"), plus 12 for its estimate, during `preprocess`; then 4 + 12 per pixel and
+//! light.
+
+use crate::allocation::{Allocation, LightEstimate, LightSampling, SampleSplit};
+use crate::alpha::{SecondOrderMoments, second_order_alpha};
+use crate::balance::Balance;
+use crate::exact_alpha::{CLAMP_SPEC, read_clamp};
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::moments::{Objective, PilotSamples};
+use crate::phase::{Observer, PhaseRole};
+use crate::pilot::{self, PilotEstimates, Surface};
+use crate::variance_aware::{pilot_samples_spec, read_pilot_samples};
+use crate::weighting::{PerSample, Weighting};
+use glam::UVec2;
+use lumis_core::integrator::Integrator;
+use lumis_core::output::Window;
+use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::IntegratorPlugin;
+use lumis_core::scene::Scene;
+use rayon::prelude::*;
+
+/// The plugin's name in scene files.
+pub const NAME: &str = "pooled_alpha";
+/// Parameter: the pooling window's radius, in pixels.
+pub const RADIUS: &str = "radius";
+/// Parameter: what α minimises, [`EXACT`], [`STRATIFIED`] or [`SECOND_ORDER`].
+pub const OBJECTIVE: &str = "objective";
+pub const EXACT: &str = "exact";
+pub const STRATIFIED: &str = "stratified";
+pub const SECOND_ORDER: &str = "second_order";
+/// Evenly spaced α in the clamp interval at which each pixel's objective is kept.
+const NODES: usize = 17;
+
+static PARAMS: &[ParamSpec] = &[
+    SAMPLES_SPEC,
+    pilot_samples_spec(
+        "M, pilot samples per light per pixel at α = ½, reused by camera sample 0 (0: N/8)",
+    ),
+    ParamSpec {
+        name: RADIUS,
+        kind: ParamKind::Int {
+            default: Some(2),
+            min: 0,
+            max: 64,
+        },
+        unit: "pixels",
+        description: "radius of the square window of similar pixels whose pilot statistics are pooled",
+    },
+    ParamSpec {
+        name: OBJECTIVE,
+        kind: ParamKind::Choice {
+            options: &[EXACT, STRATIFIED, SECOND_ORDER],
+            default: EXACT,
+        },
+        unit: "",
+        description: "exact: minimum of the pooled second moment; stratified: of the pooled variance of the stratified estimator; second_order: the paper's α̂ from pooled sums",
+    },
+    CLAMP_SPEC,
+    AOVS_SPEC,
+];
+
+/// What each pixel keeps of its pilot, per light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Pooled {
+    /// An objective of [`crate::moments`] at [`NODES`] α, then 1 if the pilot is informative.
+    Nodes(Objective),
+    /// Î₁, Î₂ (sums), then 1 if Î₂ > 0.
+    SecondOrder,
+}
+
+impl Pooled {
+    fn per_light(self) -> usize {
+        match self {
+            Pooled::Nodes(_) => NODES + 1,
+            Pooled::SecondOrder => 3,
+        }
+    }
+}
+
+/// α per pixel of the window and light.
+#[derive(Clone, Debug, Default)]
+pub struct AlphaMap {
+    window: Option<Window>,
+    lights: usize,
+    alphas: Vec<f32>,
+}
+
+impl AlphaMap {
+    /// α at `pixel` (film coordinates) for `light`, if the pilot covered it.
+    pub fn get(&self, pixel: UVec2, light: usize) -> Option<f64> {
+        let w = self.window?;
+        let (x, y) = (pixel.x.checked_sub(w.x)?, pixel.y.checked_sub(w.y)?);
+        if x >= w.width || y >= w.height {
+            return None;
+        }
+        let a = *self
+            .alphas
+            .get((y * w.width + x) as usize * self.lights + light)?;
+        a.is_finite().then_some(a as f64)
+    }
+}
+
+/// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative.
+fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> {
+    match pooled {
+        Pooled::SecondOrder => {
+            (values[2] > 0.0).then_some(())?;
+            second_order_alpha(values[0] as f64, values[1] as f64)
+        }
+        Pooled::Nodes(_) => {
+            (values[NODES] > 0.0).then_some(())?;
+            let v = &values[..NODES];
+            let best = (0..NODES).min_by(|&a, &b| v[a].total_cmp(&v[b]))?;
+            let step = (clamp[1] - clamp[0]) / (NODES - 1) as f64;
+            let mut alpha = clamp[0] + step * best as f64;
+            if best > 0 && best < NODES - 1 {
+                // The vertex of the parabola through the best node and its neighbours.
+                let (l, c, r) = (v[best - 1] as f64, v[best] as f64, v[best + 1] as f64);
+                let curvature = l - 2.0 * c + r;
+                if curvature > 0.0 && curvature.is_finite() {
+                    alpha += step * (0.5 * (l - r) / curvature).clamp(-1.0, 1.0);
+                }
+            }
+            Some(alpha)
+        }
+    }
+}
+
+/// Pools the pilot's per-pixel values (`per_light` per light) over the similar pixels of each
+/// pixel's window, and turns them into α.
+fn pool(
+    scene: &Scene,
+    surfaces: &[Option<Surface>],
+    values: &[f32],
+    pooled: Pooled,
+    radius: u32,
+    clamp: [f64; 2],
+) -> AlphaMap {
+    let window = scene.window;
+    let lights = scene.emitters.len();
+    let per_light = pooled.per_light();
+    let (width, height) = (window.width as i64, window.height as i64);
+    let r = radius as i64;
+    let mut alphas = vec![f32::NAN; (window.width * window.height) as usize * lights];
+    alphas
+        .par_chunks_mut((window.width as usize * lights).max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let mut sum = vec![0.0f32; per_light];
+            for x in 0..width {
+                let p = (y as i64 * width + x) as usize;
+                let Some(surface) = surfaces[p] else {
+                    continue;
+                };
+                for light in 0..lights {
+                    if scene.emitters[light].is_delta() {
+                        continue;
+                    }
+                    sum.fill(0.0);
+                    for qy in (y as i64 - r).max(0)..(y as i64 + r + 1).min(height) {
+                        for qx in (x - r).max(0)..(x + r + 1).min(width) {
+                            let q = (qy * width + qx) as usize;
+                            if !surfaces[q].is_some_and(|s| surface.similar(&s)) {
+                                continue;
+                            }
+                            let v = &values[(q * lights + light) * per_light..][..per_light];
+                            for (s, v) in sum.iter_mut().zip(v) {
+                                *s += v;
+                            }
+                        }
+                    }
+                    let alpha = alpha_of(pooled, &sum, clamp)
+                        .unwrap_or(0.5)
+                        .clamp(clamp[0], clamp[1]);
+                    row[x as usize * lights + light] = alpha as f32;
+                }
+            }
+        });
+    AlphaMap {
+        window: Some(window),
+        lights,
+        alphas,
+    }
+}
+
+/// The allocation: N samples at the pooled α, camera sample 0 reusing the pilot.
+pub struct PooledAlpha {
+    pub pilot_samples: u32,
+    pub radius: u32,
+    pub pooled: Pooled,
+    pub clamp: [f64; 2],
+    pub alphas: AlphaMap,
+    pub estimates: PilotEstimates,
+}
+
+impl Allocation for PooledAlpha {
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate {
+        let n = sampling.samples();
+        let (pixel, light) = (sampling.pixel(), sampling.light());
+        let alpha = self
+            .alphas
+            .get(pixel, light)
+            .unwrap_or(0.5)
+            .clamp(self.clamp[0], self.clamp[1]);
+        let reused = sampling.camera_sample() == 0 && self.estimates.get(pixel, light).is_some();
+        let fresh = if reused {
+            n - self.pilot_samples.min(n)
+        } else {
+            n
+        };
+        let value = if fresh > 0 {
+            let split = SampleSplit::new(alpha, fresh);
+            sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ())
+        } else {
+            lumis_core::math::Rgb::ZERO
+        };
+        LightEstimate {
+            value: self.estimates.combine(sampling, value, fresh),
+            alpha,
+        }
+    }
+
+    fn preprocess(&mut self, scene: &Scene) {
+        let (pooled, clamp) = (self.pooled, self.clamp);
+        let step = (clamp[1] - clamp[0]) / (NODES - 1) as f64;
+        let (surfaces, values, estimates) = pilot::run::<f32>(
+            scene,
+            self.pilot_samples,
+            pooled.per_light(),
+            |_, phase, out| match pooled {
+                Pooled::Nodes(objective) => {
+                    let pilot = PilotSamples::new(phase);
+                    if !pilot.informative() {
+                        return;
+                    }
+                    for (k, v) in out[..NODES].iter_mut().enumerate() {
+                        *v = pilot.objective(objective, clamp[0] + step * k as f64) as f32;
+                    }
+                    out[NODES] = 1.0;
+                }
+                Pooled::SecondOrder => {
+                    let mut moments = SecondOrderMoments::default();
+                    moments.observe(phase, &[]);
+                    out[0] = moments.i1 as f32;
+                    out[1] = moments.i2 as f32;
+                    out[2] = if moments.i2 > 0.0 { 1.0 } else { 0.0 };
+                }
+            },
+        );
+        self.alphas = pool(scene, &surfaces, &values, pooled, self.radius, clamp);
+        self.estimates = estimates;
+    }
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let pilot_samples = read_pilot_samples(params, 8)?;
+    let radius = params.int(RADIUS)? as u32;
+    let pooled = match params.choice(OBJECTIVE)? {
+        EXACT => Pooled::Nodes(Objective::Mixture),
+        STRATIFIED => Pooled::Nodes(Objective::Stratified),
+        _ => Pooled::SecondOrder,
+    };
+    let clamp = read_clamp(params)?;
+    let allocation = PooledAlpha {
+        pilot_samples,
+        radius,
+        pooled,
+        clamp,
+        alphas: AlphaMap::default(),
+        estimates: PilotEstimates::default(),
+    };
+    MisIntegrator::boxed(params, allocation, PerSample(Balance))
+}
+
+inventory::submit! {
+    IntegratorPlugin {
+        name: NAME,
+        description: "direct lighting with α from pilot statistics pooled over similar neighbouring pixels (exact, stratified or second-order)",
+        params: PARAMS,
+        create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_node_minimum_is_refined_by_a_parabola() {
+        // (α − 0.3)² sampled at the 17 nodes of [0, 1]: the vertex is found exactly.
+        let mut values: Vec<f32> = (0..NODES)
+            .map(|k| (k as f32 / 16.0 - 0.3).powi(2))
+            .collect();
+        values.push(1.0);
+        let alpha = alpha_of(Pooled::Nodes(Objective::Mixture), &values, [0.0, 1.0]).unwrap();
+        assert!((alpha - 0.3).abs() < 1e-6, "{alpha}");
+        // A minimum at a bound stays there.
+        let mut values: Vec<f32> = (0..NODES).map(|k| k as f32).collect();
+        values.push(1.0);
+        let alpha = alpha_of(Pooled::Nodes(Objective::Mixture), &values, [0.025, 0.975]);
+        assert_eq!(alpha, Some(0.025));
+        // Uninformative: no α.
+        values[NODES] = 0.0;
+        assert_eq!(
+            alpha_of(Pooled::Nodes(Objective::Mixture), &values, [0.0, 1.0]),
+            None
+        );
+    }
+}
