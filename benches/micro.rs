@@ -237,15 +237,9 @@ fn bsdfs(c: &mut Criterion) {
 }
 
 fn envmap(c: &mut Criterion) {
+    use lumis::emitters::envmap::{EnvironmentMap, Interpolation, MapSettings};
     let path = repo("scenes/envmaps/studio.exr");
     let image = lumis::image_io::read_exr_rgb(&path).expect("studio.exr reads");
-    let map = lumis::emitters::envmap::EnvironmentMap::new(
-        image.width,
-        image.height,
-        image.pixels,
-        1.0,
-        0.0,
-    );
     let reference = ReferencePoint {
         position: Vec3::ZERO,
     };
@@ -255,30 +249,46 @@ fn envmap(c: &mut Criterion) {
         .iter()
         .map(|&u| lumis::math::warp::square_to_cosine_hemisphere(u).normalize())
         .collect();
-    let mut group = c.benchmark_group("envmap_studio_1024x512");
-    group.throughput(Throughput::Elements(BATCH as u64));
-    group.bench_function("sample_direction", |b| {
-        b.iter(|| {
-            for &u in &us {
-                black_box(map.sample_direction(&reference, u));
-            }
-        })
-    });
-    group.bench_function("pdf_direction", |b| {
-        b.iter(|| {
-            for &d in &directions {
-                black_box(map.pdf_direction(&reference, d, None));
-            }
-        })
-    });
-    group.bench_function("eval", |b| {
-        b.iter(|| {
-            for &d in &directions {
-                black_box(map.eval(d, None));
-            }
-        })
-    });
-    group.finish();
+    for (name, interpolation) in [
+        ("envmap_studio_1024x512", Interpolation::Nearest),
+        ("envmap_studio_1024x512_bilinear", Interpolation::Bilinear),
+    ] {
+        let settings = MapSettings {
+            interpolation,
+            ..MapSettings::default()
+        };
+        let map = EnvironmentMap::with_settings(
+            image.width,
+            image.height,
+            image.pixels.clone(),
+            &settings,
+        )
+        .expect("studio.exr makes a map");
+        let mut group = c.benchmark_group(name);
+        group.throughput(Throughput::Elements(BATCH as u64));
+        group.bench_function("sample_direction", |b| {
+            b.iter(|| {
+                for &u in &us {
+                    black_box(map.sample_direction(&reference, u));
+                }
+            })
+        });
+        group.bench_function("pdf_direction", |b| {
+            b.iter(|| {
+                for &d in &directions {
+                    black_box(map.pdf_direction(&reference, d, None));
+                }
+            })
+        });
+        group.bench_function("eval", |b| {
+            b.iter(|| {
+                for &d in &directions {
+                    black_box(map.eval(d, None));
+                }
+            })
+        });
+        group.finish();
+    }
 }
 
 /// The α statistics' cost per sample: the same balance-weighted phase at a shading point of the

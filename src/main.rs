@@ -37,6 +37,21 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Convert a Mitsuba 3 XML scene to a lumis RON scene, naming (with its line) every element
+    /// it cannot convert; nothing is written unless all of it converts (or --partial).
+    Import {
+        /// The Mitsuba 3 scene (XML).
+        scene: PathBuf,
+        /// The RON scene to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Override a <default> parameter, as `mitsuba -D name=value` (repeatable).
+        #[arg(short = 'D', long = "define", value_name = "NAME=VALUE")]
+        defines: Vec<String>,
+        /// Write the scene without the elements that cannot be converted (they are listed).
+        #[arg(long)]
+        partial: bool,
+    },
     /// List the built-in plugins with their parameters.
     Plugins {
         /// Print the reference as Markdown (docs/plugins.md is generated this way).
@@ -157,6 +172,12 @@ fn main() {
         Command::Render(args) => render(args),
         Command::Study(args) => study(args),
         Command::Merl { bsdf, output } => merl(&bsdf, &output),
+        Command::Import {
+            scene,
+            output,
+            defines,
+            partial,
+        } => lumis::import::run(&scene, &output, &defines, partial),
         Command::Plugins { markdown } => {
             print!(
                 "{}",

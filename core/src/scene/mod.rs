@@ -2,8 +2,11 @@
 
 pub mod description;
 pub mod gltf;
+pub mod gltf_scene;
 pub mod load;
+pub mod obj;
 pub mod overrides;
+pub mod ply;
 pub mod shapes;
 
 use crate::accel::{FirstHit, Geometry, Intersection, Ray};
