@@ -216,6 +216,8 @@ struct Series {
     bars: Vec<(f64, f64, f64)>,
     /// Markers only, or a dashed line.
     line: Line,
+    /// Points (data coordinates) of ratios whose interval contains 1: drawn hollow (n.s.).
+    not_significant: Vec<(f64, f64)>,
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -233,6 +235,7 @@ impl Series {
             points,
             band: Vec::new(),
             bars: Vec::new(),
+            not_significant: Vec::new(),
             line: Line::Solid,
         }
     }
@@ -365,6 +368,14 @@ fn chart(area: &Area, axes: &Axes, series: &[Series]) -> Result<()> {
         }
         if s.line != Line::Dashed {
             chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, s.color.filled())))?;
+            let hollow: Vec<(f64, f64)> =
+                s.not_significant.iter().filter_map(|&p| map(p)).collect();
+            chart.draw_series(hollow.iter().map(|&p| Circle::new(p, 3, WHITE.filled())))?;
+            chart.draw_series(
+                hollow
+                    .iter()
+                    .map(|&p| Circle::new(p, 3, s.color.stroke_width(2))),
+            )?;
         }
         for &(x, lo, hi) in &s.bars {
             if let (Some(x), Some(lo), Some(hi)) = (xs.map(x), ys.map(lo), ys.map(hi)) {
@@ -562,6 +573,10 @@ pub fn summary(out: &Path, scenes: &[SceneAnalysis], labels: &[String]) -> Resul
             // Each integrator a little below the last within the scene's row.
             let y = (n - 1 - row) as f64 + 0.8 * (0.5 - (i as f64 + 0.5) / rows);
             series[i].points.push((r.estimate.value, y));
+            // Balance against itself is 1 by definition, not a finding.
+            if r.estimate.not_significant() && i != scene.balance {
+                series[i].not_significant.push((r.estimate.value, y));
+            }
             if r.estimate.lo.is_finite() && r.estimate.hi.is_finite() {
                 series[i].band.push((y, r.estimate.lo, r.estimate.hi));
                 lo = lo.min(r.estimate.lo);
@@ -590,7 +605,7 @@ pub fn summary(out: &Path, scenes: &[SceneAnalysis], labels: &[String]) -> Resul
             let rows: Vec<f64> = (0..n).map(|i| i as f64).collect();
             let mut chart = ChartBuilder::on(&area)
                 .caption(
-                    "Speed-up over balance at equal error (95 % intervals)",
+                    "Speed-up over balance at equal error (95 % intervals; hollow: n.s.)",
                     ("sans-serif", 17),
                 )
                 .margin(10)
@@ -642,6 +657,13 @@ pub fn summary(out: &Path, scenes: &[SceneAnalysis], labels: &[String]) -> Resul
                         .iter()
                         .map(|&(x, y)| Circle::new((x.log10(), y), 4, s.color.filled())),
                 )?;
+                // A speed-up whose interval contains 1: hollow, and marked.
+                for &(x, y) in &s.not_significant {
+                    chart.draw_series([
+                        Circle::new((x.log10(), y), 4, WHITE.filled()),
+                        Circle::new((x.log10(), y), 4, s.color.stroke_width(2)),
+                    ])?;
+                }
             }
             legend(&key, "integrators", &series)
         },
@@ -669,6 +691,9 @@ pub fn sweeps(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
                 for p in of(s, sweep) {
                     if let Some(e) = value(&p) {
                         series.points.push((p.x, e.value));
+                        if e.not_significant() {
+                            series.not_significant.push((p.x, e.value));
+                        }
                         series.bars.push((p.x, e.lo, e.hi));
                     }
                 }
@@ -703,7 +728,7 @@ pub fn sweeps(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
                 &Axes {
                     title,
                     x,
-                    y: ("relative variance / balance's", Scale::Log),
+                    y: ("relative variance / balance's (hollow: n.s.)", Scale::Log),
                     x_marks: Vec::new(),
                     y_marks: vec![1.0],
                 },
@@ -729,7 +754,7 @@ pub fn sweeps(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
                     &Axes {
                         title: "V[L₁] (estimate basis), M fixed (paper Figure 3)",
                         x: ("N", Scale::Log2),
-                        y: ("V[L₁] / balance's", Scale::Log),
+                        y: ("V[L₁] / balance's (hollow: n.s.)", Scale::Log),
                         x_marks: Vec::new(),
                         y_marks: vec![1.0],
                     },
@@ -740,7 +765,7 @@ pub fn sweeps(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
                     &Axes {
                         title: "Relative variance, M fixed (paper Figure 4)",
                         x: ("N", Scale::Log2),
-                        y: ("relative variance / balance's", Scale::Log),
+                        y: ("relative variance / balance's (hollow: n.s.)", Scale::Log),
                         x_marks: Vec::new(),
                         y_marks: vec![1.0],
                     },
