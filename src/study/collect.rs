@@ -703,3 +703,115 @@ fn pareto_front(curves: &[Curve]) -> Vec<FrontSegment> {
     }
     front
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::config::{parse_budgets, parse_integrators};
+    use crate::study::plan::plan_scene;
+    use crate::study::reference::Reference;
+
+    /// A synthetic cell result: each pixel the reference plus noise that depends on the cell
+    /// (a hash of its configuration, run and pixel), σ growing with the configuration's index.
+    fn synthetic(cell: &crate::study::plan::Cell, reference: &[f64], w: u32, h: u32) -> CellResult {
+        let Role::Run { configuration, run } = cell.role else {
+            unreachable!("runs only")
+        };
+        let noise = |p: usize| {
+            let mut z = (configuration as u64) << 40 ^ u64::from(run) << 20 ^ p as u64;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let sigma = 0.1 * (1.0 + configuration as f64 / 4.0);
+        CellResult {
+            cell: *cell,
+            width: w,
+            height: h,
+            color: reference
+                .iter()
+                .enumerate()
+                .map(|(p, r)| [(r * (1.0 + sigma * noise(p))) as f32; 3])
+                .collect(),
+            channels: Vec::new(),
+            cpu_time: 0.01 * (1.0 + configuration as f64) * (1.0 + 0.1 * noise(run as usize)),
+            wall_time: 0.01,
+        }
+    }
+
+    /// Collect is a pure function of the results: the same cells added in the plan's order or
+    /// reversed, or after a round trip through their serialised form, give bit-identical
+    /// analyses (what issue 16's `--collect` over cells run anywhere relies on).
+    #[test]
+    fn collect_is_independent_of_the_order_and_the_transport_of_results() {
+        crate::link_plugins();
+        let (w, h) = (24u32, 16u32);
+        let mut config = StudyConfig::new(vec!["s/03.ron".into()], "out".into()).expect("defaults");
+        config.integrators = parse_integrators("balance,alpha,light").expect("list");
+        config.budgets = parse_budgets("4,8,16").expect("ladder");
+        config.runs = 3;
+        config.max_runs = 6;
+        let plan = plan_scene(&config, 0, "s/03.ron".into()).expect("plan");
+        let luminance: Vec<f64> = (0..(w * h) as usize)
+            .map(|p| 0.1 + (p % 7) as f64 * 0.3)
+            .collect();
+        let reference = || Reference {
+            pixels: luminance.iter().map(|&y| Rgb::splat(y as f32)).collect(),
+            luminance: luminance.clone(),
+            variance: vec![0.0; luminance.len()],
+            samples: None,
+            cpu_time: None,
+            path: "synthetic".into(),
+            cached: false,
+        };
+        let cells: Vec<_> = plan
+            .cells(1..=3, true)
+            .into_iter()
+            .chain(plan.cells(4..=6, false))
+            .collect();
+        let results: Vec<CellResult> = cells
+            .iter()
+            .map(|c| synthetic(c, &luminance, w, h))
+            .collect();
+        let analyse = |results: &mut dyn Iterator<Item = CellResult>| {
+            let context = Context::new(reference(), 0.01, 8, 1.0, w, h);
+            let mut collector = Collector::new(plan.clone(), context, &config);
+            for r in results {
+                collector.add(&r).expect("a run of this plan");
+            }
+            collector.analyse(false).expect("complete runs")
+        };
+        let forward = analyse(&mut results.iter().cloned());
+        let reversed = analyse(&mut results.iter().rev().cloned());
+        let transported = analyse(&mut results.iter().map(|r| {
+            let text = ron::to_string(r).expect("serialises");
+            ron::from_str::<CellResult>(&text).expect("deserialises")
+        }));
+        for other in [&reversed, &transported] {
+            assert_eq!(other.runs, forward.runs);
+            for (a, b) in forward
+                .rows
+                .iter()
+                .flatten()
+                .zip(other.rows.iter().flatten())
+            {
+                assert_eq!(a.relative_variance, b.relative_variance, "{}", a.label);
+                assert_eq!(a.ratios.relative_variance, b.ratios.relative_variance);
+                assert_eq!(a.relative_mse, b.relative_mse);
+                assert_eq!(a.cpu_time, b.cpu_time);
+            }
+            for (a, b) in forward.trade.iter().zip(&other.trade) {
+                assert_eq!(
+                    a.speedup.map(|r| r.estimate),
+                    b.speedup.map(|r| r.estimate),
+                    "{}",
+                    a.label
+                );
+            }
+        }
+        // The K rule chose a round of the plan, and every curve has every budget.
+        assert!(forward.runs == 3 || forward.runs == 6);
+        assert_eq!(forward.rows.len(), 3);
+        assert!(forward.rows.iter().all(|r| r.len() == 3));
+    }
+}
