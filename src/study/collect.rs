@@ -667,8 +667,14 @@ fn pareto_front(curves: &[Curve]) -> Vec<FrontSegment> {
     if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
         return Vec::new();
     }
-    // Error of a curve at log time x, within its measured times.
+    // Error of a curve at log time x: interpolated within its measured times, and beyond its
+    // largest its lowest measured error (what that much time buys at least), so that a curve
+    // whose ladder ends early is not left out of the front where slower ones continue.
     let at = |points: &[(f64, f64)], x: f64| -> Option<f64> {
+        let last = points.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+        if x > last {
+            return points.iter().map(|p| p.1).min_by(f64::total_cmp);
+        }
         points.windows(2).find_map(|w| {
             let ((x0, y0), (x1, y1)) = (w[0], w[1]);
             let (a, b) = (x0.min(x1), x0.max(x1));

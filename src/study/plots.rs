@@ -473,8 +473,21 @@ pub fn scene_curves(out: &Path, s: &SceneAnalysis) -> Result<()> {
             .iter()
             .map(|p| (p.cpu_time.value, p.relative_variance.value))
             .collect();
-        for t in [segment.from, segment.to] {
-            if let Some(e) = interpolate_log(&points, t) {
+        // Beyond its largest budget a curve's front is its lowest error (collect's rule).
+        let last = points.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+        let lowest = points.iter().map(|p| p.1).min_by(f64::total_cmp);
+        // The segment's ends and its owner's measured points between them.
+        let inside = points
+            .iter()
+            .map(|p| p.0)
+            .filter(|&t| segment.from < t && t < segment.to);
+        let times: Vec<f64> = std::iter::once(segment.from)
+            .chain(inside)
+            .chain(std::iter::once(segment.to))
+            .collect();
+        for t in times {
+            let beyond = if t > last { lowest } else { None };
+            if let Some(e) = interpolate_log(&points, t).or(beyond) {
                 front.points.push((t, e));
             }
         }
