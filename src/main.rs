@@ -101,35 +101,61 @@ struct StudyArgs {
     /// The scene files (RON).
     #[arg(required = true)]
     scenes: Vec<PathBuf>,
-    /// Integrators, comma-separated, each NAME[:key=value]... (e.g. alpha:mode=preprocessed).
+    /// Integrators, comma-separated, each NAME[:key=value]... (e.g. alpha:mode=preprocessed);
+    /// any registered integrator with a `samples` parameter. Must include balance.
     #[arg(long, default_value = lumis::study::DEFAULT_INTEGRATORS)]
     integrators: String,
-    /// N: samples per light per camera sample.
-    #[arg(long, default_value_t = 64)]
-    samples: u32,
-    /// K: independent runs (seeds) per configuration, at least 2.
+    /// The ladder of budgets N (samples per light per camera sample), comma-separated.
+    #[arg(long, default_value = lumis::study::DEFAULT_BUDGETS)]
+    budgets: String,
+    /// The budget whose balance error is the target error and whose time is the equal-time
+    /// point (default: the middle of the ladder).
+    #[arg(long)]
+    target_budget: Option<u32>,
+    /// K₀: runs (seeds) of every configuration in the first round, at least 3.
     #[arg(long, default_value_t = 4)]
     runs: u32,
+    /// The cap of K: the curves' runs double until the headline ratio's 95 % interval is within
+    /// ±--precision, up to this.
+    #[arg(long, default_value_t = 16)]
+    max_runs: u32,
+    /// Relative half-width the K rule aims at (0.05: ±5 %).
+    #[arg(long, default_value_t = 0.05)]
+    precision: f64,
     /// A reference image (EXR) for a single scene, instead of rendering one.
     #[arg(long, conflicts_with = "reference_samples")]
     reference: Option<PathBuf>,
-    /// Samples per light per pixel of the rendered reference (balance heuristic), cached next
-    /// to the scene as NAME.reference-WxH-S.exr with the parameters that made it.
+    /// Samples per light per pixel of the rendered reference (balance heuristic, 16 shards).
     #[arg(long, default_value_t = 4096)]
     reference_samples: u32,
-    /// Also run every integrator with the N that matches `alpha`'s time.
+    /// Where rendered references are cached (default: OUT/cache).
     #[arg(long)]
-    equal_time: bool,
-    /// Sweeps to run, comma-separated: clamp (Figure 2), m (Figure 7), n (Figures 3, 4), all, none.
-    #[arg(long, default_value = "all")]
+    cache_dir: Option<PathBuf>,
+    /// Also run the paper's preprocessed α (M = 4096) at N = 256 with K₀ runs (costly: its pilot
+    /// is 17 times its budget).
+    #[arg(long)]
+    paper_pilots: bool,
+    /// Sweeps of α's parameters, comma-separated: clamp (Figure 2), m (Figure 7), n (Figures 3,
+    /// 4), all, none.
+    #[arg(long, default_value = "none")]
     sweeps: String,
+    /// The budget of the sweeps (default: the target budget).
+    #[arg(long)]
+    sweep_budget: Option<u32>,
+    /// Edge of the pixel blocks of the jackknife, pixels.
+    #[arg(long, default_value_t = 16)]
+    block: u32,
+    /// ε of the relative errors as a fraction of the reference's mean luminance:
+    /// V / (ref² + (fraction · mean)²).
+    #[arg(long, default_value_t = 0.01)]
+    epsilon: f64,
     /// Override scene values for every scene (repeatable), e.g. --set film.width=64.
     #[arg(long = "set", value_name = "PATH=VALUE")]
     overrides: Vec<String>,
     /// Worker threads (default: one per core; at most the machine's hardware threads).
     #[arg(long, default_value_t = 0)]
     threads: usize,
-    /// Seed of the first run (runs use seed + 1 ... seed + K).
+    /// Seed of the runs (run k uses seed + k).
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Output directory.
@@ -141,7 +167,7 @@ struct StudyArgs {
     /// A Markdown file (a reading of the results, written by hand) inserted after the summary.
     #[arg(long)]
     notes: Option<PathBuf>,
-    /// No progress bar.
+    /// No progress bar and no progress lines.
     #[arg(short, long)]
     quiet: bool,
 }
@@ -196,74 +222,60 @@ fn worker_threads(requested: usize) -> usize {
     requested
 }
 
-/// Splits a comma-separated list at the commas outside parentheses and brackets.
-fn split_list(list: &str) -> Vec<&str> {
-    let (mut depth, mut start, mut items) = (0i32, 0, Vec::new());
-    for (i, c) in list.char_indices() {
-        match c {
-            '(' | '[' => depth += 1,
-            ')' | ']' => depth -= 1,
-            ',' if depth == 0 => {
-                items.push(&list[start..i]);
-                start = i + 1;
-            }
-            _ => {}
-        }
-    }
-    items.push(&list[start..]);
-    items
-        .into_iter()
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .collect()
-}
-
 fn study(args: StudyArgs) -> Result<()> {
-    use lumis::study::{Choice, ReferenceSource, StudyConfig, Sweeps};
-    let config = StudyConfig {
-        scenes: args.scenes,
-        integrators: split_list(&args.integrators)
-            .into_iter()
-            .map(Choice::parse)
-            .collect::<Result<_>>()?,
-        samples: args.samples,
-        runs: args.runs,
-        reference: match args.reference {
-            Some(file) => ReferenceSource::File(file),
-            None => ReferenceSource::Samples(args.reference_samples),
-        },
-        equal_time: args.equal_time,
-        sweeps: Sweeps::parse(&args.sweeps)?,
-        overrides: args.overrides,
-        threads: worker_threads(args.threads),
-        seed: args.seed,
-        out: args.out,
-        report: args.report,
-        notes: args.notes,
-        command: Some(
-            std::iter::once("lumis".to_string())
-                .chain(std::env::args().skip(1))
-                .collect::<Vec<_>>()
-                .join(" "),
-        ),
+    use lumis::study::config::{parse_budgets, parse_integrators};
+    use lumis::study::{Progress, ReferenceSource, StudyConfig, Sweeps};
+    let mut config = StudyConfig::new(args.scenes, args.out)?;
+    config.integrators = parse_integrators(&args.integrators)?;
+    config.budgets = parse_budgets(&args.budgets)?;
+    config.target_budget = args.target_budget;
+    config.runs = args.runs;
+    config.max_runs = args.max_runs;
+    config.precision = args.precision;
+    config.reference = match args.reference {
+        Some(file) => ReferenceSource::File(file),
+        None => ReferenceSource::Samples(args.reference_samples),
     };
-    let bar = if args.quiet || !std::io::stderr().is_terminal() {
+    config.cache_dir = args.cache_dir;
+    config.paper_pilots = args.paper_pilots;
+    config.sweeps = Sweeps::parse(&args.sweeps)?;
+    config.sweep_budget = args.sweep_budget;
+    config.block = args.block;
+    config.epsilon = args.epsilon;
+    config.overrides = args.overrides;
+    config.threads = worker_threads(args.threads);
+    config.seed = args.seed;
+    config.report = args.report;
+    config.notes = args.notes;
+    config.command = Some(
+        std::iter::once("lumis".to_string())
+            .chain(std::env::args().skip(1))
+            .collect::<Vec<_>>()
+            .join(" "),
+    );
+    let terminal = std::io::stderr().is_terminal();
+    let bar = if args.quiet || !terminal {
         ProgressBar::hidden()
     } else {
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
         bar.set_style(
             ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} renders (eta {eta}) {msg}",
+                "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta}) {msg}",
             )
             .context("progress bar template")?,
         );
         bar.enable_steady_tick(std::time::Duration::from_millis(200));
         bar
     };
-    // Ctrl-C stops the render in progress; every finished row is already written.
+    let progress = Progress {
+        bar,
+        lines: !args.quiet,
+    };
+    // Ctrl-C stops at the next camera sample; every finished scene is already written, and the
+    // current one is written with its complete runs.
     let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
     let start = std::time::Instant::now();
-    lumis::study::run(&config, &bar, &cancel)?;
+    lumis::study::run(&config, &progress, &cancel)?;
     if !args.quiet {
         eprintln!(
             "study of {} scene(s) finished in {:.1} s -> {}",

@@ -1,5 +1,5 @@
-//! Image error metrics of the study: luminance statistics across runs, relative MSE, and the
-//! paper's Lab error (gamma-2.2 tone map, clamp, CIE L*a*b*, mean ΔE*ab).
+//! The paper's Lab error (gamma-2.2 tone map, clamp, CIE L*a*b*, ΔE*ab per pixel) and the mean
+//! luminance of an image.
 
 use lumis_core::math::{Rgb, luminance};
 
@@ -53,101 +53,9 @@ pub fn lab_difference(image: &[Rgb], reference: &[Rgb], exposure_scale: f32) -> 
         .collect()
 }
 
-/// Mean relative squared error of luminance, (I − R)² / (R² + ε) with ε = 0.01 so that black
-/// reference pixels do not dominate.
-pub fn relative_mse(image: &[Rgb], reference: &[Rgb]) -> f64 {
-    let sum: f64 = image
-        .iter()
-        .zip(reference)
-        .map(|(&a, &b)| {
-            let (a, b) = (luminance(a) as f64, luminance(b) as f64);
-            (a - b) * (a - b) / (b * b + 0.01)
-        })
-        .sum();
-    sum / image.len().max(1) as f64
-}
-
 /// Mean luminance of an image.
 pub fn mean_luminance(image: &[Rgb]) -> f64 {
     image.iter().map(|&c| luminance(c) as f64).sum::<f64>() / image.len().max(1) as f64
-}
-
-/// The median of some values (NaN for none).
-pub fn median(values: &mut [f64]) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    }
-}
-
-/// Per-pixel luminance sums over independent runs of one configuration: the estimator variance
-/// V[L_N] per pixel and the standard error of the image mean.
-#[derive(Clone, Debug)]
-pub struct RunStatistics {
-    runs: u32,
-    sum: Vec<f64>,
-    sum_sq: Vec<f64>,
-}
-
-impl RunStatistics {
-    pub fn new(pixels: usize) -> Self {
-        Self {
-            runs: 0,
-            sum: vec![0.0; pixels],
-            sum_sq: vec![0.0; pixels],
-        }
-    }
-
-    pub fn add(&mut self, image: &[Rgb]) {
-        self.runs += 1;
-        for ((s, q), &c) in self.sum.iter_mut().zip(&mut self.sum_sq).zip(image) {
-            let y = luminance(c) as f64;
-            *s += y;
-            *q += y * y;
-        }
-    }
-
-    pub fn runs(&self) -> u32 {
-        self.runs
-    }
-
-    /// The unbiased variance across runs of each pixel (needs two runs or more).
-    pub fn pixel_variances(&self) -> impl Iterator<Item = f64> + '_ {
-        let k = self.runs as f64;
-        self.sum
-            .iter()
-            .zip(&self.sum_sq)
-            .map(move |(&s, &q)| ((q - s * s / k) / (k - 1.0)).max(0.0))
-    }
-
-    /// V[L_N] averaged over pixels.
-    pub fn estimator_variance(&self) -> f64 {
-        if self.runs < 2 {
-            return f64::NAN;
-        }
-        self.pixel_variances().sum::<f64>() / self.sum.len().max(1) as f64
-    }
-
-    /// The mean over runs of the image's mean luminance.
-    pub fn mean(&self) -> f64 {
-        self.sum.iter().sum::<f64>() / (self.runs as f64 * self.sum.len().max(1) as f64)
-    }
-
-    /// Standard error of [`Self::mean`]: pixels are independent estimates, so the variance of
-    /// the image mean of one run is Σ_p V_p / P², and K runs divide it by K.
-    pub fn mean_standard_error(&self) -> f64 {
-        if self.runs < 2 {
-            return f64::NAN;
-        }
-        let p = self.sum.len().max(1) as f64;
-        (self.pixel_variances().sum::<f64>() / (p * p * self.runs as f64)).sqrt()
-    }
 }
 
 #[cfg(test)]
@@ -180,29 +88,5 @@ mod tests {
             (d - norm).abs() < 1e-9 && (red[0] - 53.24).abs() < 0.05,
             "{red:?}"
         );
-    }
-
-    #[test]
-    fn run_statistics_match_direct_formulas() {
-        let runs = [[1.0f32, 2.0], [3.0, 2.0], [2.0, 5.0]];
-        let mut stats = RunStatistics::new(2);
-        for r in runs {
-            stats.add(&r.map(Rgb::splat));
-        }
-        // Luminance of a grey is the grey (the weights sum to 1).
-        let var: [f64; 2] = [1.0, 3.0]; // unbiased variances of (1, 3, 2) and (2, 2, 5)
-        assert!((stats.estimator_variance() - 2.0).abs() < 1e-5);
-        assert!((stats.mean() - 2.5).abs() < 1e-5);
-        let se = ((var[0] + var[1]) / (4.0 * 3.0)).sqrt();
-        assert!((stats.mean_standard_error() - se).abs() < 1e-5);
-    }
-
-    #[test]
-    fn median_and_relative_mse() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
-        assert!(median(&mut []).is_nan());
-        let r = [Rgb::splat(1.0)];
-        assert!((relative_mse(&[Rgb::splat(2.0)], &r) - 1.0 / 1.01).abs() < 1e-6);
     }
 }

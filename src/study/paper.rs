@@ -2,6 +2,7 @@
 //! study prints its ratios to the balance heuristic beside ours. Scenes `01` … `11` of
 //! `scenes/paper/` are analogues of the paper's scenes 1 … 11: compare ratios, not values.
 
+use super::config::{Choice, PAPER_BUDGET, PAPER_PREPROCESSED_PILOT};
 use lumis_integrators::{alpha, balance, bsdf, light, max, power};
 
 /// One scene's row of the paper's tables.
@@ -139,6 +140,49 @@ pub fn efficiency(scene: &PaperScene, kind: &str, mode: Option<&str>) -> Option<
     Some(1.0 / (scene.sampling_variance.get(kind, mode)? * scene.time.get(kind, mode)?))
 }
 
+/// The paper's method that a study configuration measures exactly (the same quantity): the same
+/// technique at the paper's N = 256 with its pilot sizes (integrated α: M = N/2; preprocessed α:
+/// M = 4096) and no other parameter. As `(plugin name, α mode)` for [`PerMethod::get`].
+pub fn method(choice: &Choice, samples: u32) -> Option<(&'static str, Option<&'static str>)> {
+    if samples != PAPER_BUDGET {
+        return None;
+    }
+    let params = &choice.spec.params;
+    let kind = [
+        bsdf::NAME,
+        light::NAME,
+        balance::NAME,
+        power::NAME,
+        max::NAME,
+    ]
+    .into_iter()
+    .find(|&k| k == choice.spec.kind);
+    if let Some(kind) = kind {
+        return params.is_empty().then_some((kind, None));
+    }
+    if choice.spec.kind != alpha::NAME
+        || params
+            .keys()
+            .any(|k| k != alpha::MODE && k != alpha::ALPHA_SAMPLES)
+    {
+        return None;
+    }
+    let pilot = choice.int_param(alpha::ALPHA_SAMPLES);
+    match choice.string_param(alpha::MODE) {
+        None | Some(alpha::INTEGRATED)
+            if pilot.is_none_or(|m| m == 0 || m == u64::from(samples / 2)) =>
+        {
+            Some((alpha::NAME, Some(alpha::INTEGRATED)))
+        }
+        Some(alpha::PREPROCESSED)
+            if pilot.is_none_or(|m| m == u64::from(PAPER_PREPROCESSED_PILOT)) =>
+        {
+            Some((alpha::NAME, Some(alpha::PREPROCESSED)))
+        }
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -157,5 +201,25 @@ mod tests {
         assert!((alpha - 0.0060).abs() < 5e-5, "{alpha}");
         assert!(s1.time.get("alpha", Some("preprocessed")).is_none());
         assert_eq!(s1.sampling_variance.ratio("balance", None), Some(1.0));
+    }
+
+    #[test]
+    fn only_the_papers_configurations_get_its_columns() {
+        let at = |text: &str, n| method(&Choice::parse(text).expect("parses"), n);
+        assert_eq!(at("balance", 256), Some(("balance", None)));
+        assert_eq!(at("balance", 64), None);
+        assert_eq!(at("alpha", 256), Some(("alpha", Some("integrated"))));
+        assert_eq!(
+            at("alpha:alpha_samples=128", 256),
+            Some(("alpha", Some("integrated")))
+        );
+        assert_eq!(at("alpha:alpha_samples=64", 256), None);
+        assert_eq!(at("alpha:clamp=(0.1,0.9)", 256), None);
+        assert_eq!(
+            at("alpha:mode=preprocessed:alpha_samples=4096", 256),
+            Some(("alpha", Some("preprocessed")))
+        );
+        assert_eq!(at("alpha:mode=preprocessed:alpha_samples=256", 256), None);
+        assert_eq!(at("cutoff", 256), None);
     }
 }

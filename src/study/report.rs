@@ -1,109 +1,16 @@
-//! The study's tables: `results.csv` and `sweeps.csv` (one line per measured configuration),
-//! and `results.md` (a table per scene with the paper's ratios beside ours). All are rewritten
-//! atomically after every finished row.
+//! The study's tables: `results.csv` (one line per measured configuration, every statistic
+//! and ratio with its 95 % interval), `trade.csv` (per scene and integrator: time to the target
+//! error, speed-up over balance, error ratio at equal time) and `results.md`. All are rewritten
+//! atomically after every finished scene.
 
-use super::{Measurement, SceneResults, StudyConfig, paper};
+use super::collect::{Extent, Reading, Row, SceneAnalysis};
+use super::config::StudyConfig;
+use super::plan::Sweep;
+use super::stats::Estimate;
 use anyhow::Result;
 use lumis_core::image_io::write_atomically;
-use lumis_integrators::{alpha, balance};
-use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
-
-/// One integrator on one scene at one budget.
-#[derive(Clone, Debug, Serialize)]
-pub struct Row {
-    pub scene: String,
-    pub integrator: String,
-    pub kind: String,
-    pub mode: String,
-    /// "equal samples" or "equal time".
-    pub budget: String,
-    /// N, samples per light per camera sample.
-    pub samples: u32,
-    pub runs: u32,
-    pub width: u32,
-    pub height: u32,
-    /// V[L_{1,α}] averaged over pixels and runs.
-    pub sampling_variance: f64,
-    /// Its median over pixels (the mean is heavy-tailed).
-    pub sampling_variance_median: f64,
-    /// V[L_{N,α}]: each pixel's variance across runs, averaged over pixels.
-    pub estimator_variance: f64,
-    pub rel_mse: f64,
-    /// Mean CIE76 ΔE*ab against the reference after the paper's tone map.
-    pub lab_error: f64,
-    /// Median wall time of a run, seconds.
-    pub time: f64,
-    /// Median CPU time of a run (all threads), seconds: robust to other load on the machine.
-    pub cpu_time: f64,
-    /// 1 / (V[L_{N,α}] × CPU time).
-    pub efficiency: f64,
-    /// Mean luminance of the image, averaged over runs, and its standard error (with the
-    /// reference's).
-    pub mean: f64,
-    pub mean_sigma: f64,
-    pub reference_mean: f64,
-    /// (mean − reference mean) / σ.
-    pub z: f64,
-}
-
-/// One point of a sweep.
-#[derive(Clone, Debug, Serialize)]
-pub struct SweepPoint {
-    pub scene: String,
-    /// "clamp" (x = interval size), "m" (x = M) or "n" (x = N, M fixed).
-    pub sweep: String,
-    pub integrator: String,
-    pub x: f64,
-    pub samples: u32,
-    pub sampling_variance: f64,
-    pub estimator_variance: f64,
-    pub time: f64,
-    pub cpu_time: f64,
-}
-
-impl SweepPoint {
-    pub(super) fn new(scene: &str, sweep: &str, integrator: &str, x: f64, m: &Measurement) -> Self {
-        Self {
-            scene: scene.into(),
-            sweep: sweep.into(),
-            integrator: integrator.into(),
-            x,
-            samples: m.samples,
-            sampling_variance: m.sampling_variance,
-            estimator_variance: m.runs.estimator_variance(),
-            time: m.time,
-            cpu_time: m.cpu_time,
-        }
-    }
-}
-
-fn write_records<T: Serialize>(path: &Path, records: impl Iterator<Item = T>) -> Result<()> {
-    let mut writer = csv::Writer::from_writer(Vec::new());
-    for record in records {
-        writer.serialize(record)?;
-    }
-    let bytes = writer.into_inner()?;
-    write_atomically(path, |file| {
-        std::io::Write::write_all(file, &bytes).map_err(|e| e.to_string())
-    })?;
-    Ok(())
-}
-
-pub fn write_csv(out: &Path, scenes: &[SceneResults]) -> Result<()> {
-    write_records(
-        &out.join("results.csv"),
-        scenes.iter().flat_map(|s| s.rows.iter()),
-    )
-}
-
-pub fn write_sweeps_csv(out: &Path, scenes: &[SceneResults]) -> Result<()> {
-    write_records(
-        &out.join("sweeps.csv"),
-        scenes.iter().flat_map(|s| s.sweeps.iter()),
-    )
-}
 
 /// A number with four significant digits, in plain or scientific notation as fits.
 pub fn sig(v: f64) -> String {
@@ -122,19 +29,264 @@ pub fn sig(v: f64) -> String {
     }
 }
 
-fn ratio(v: Option<f64>) -> String {
+/// A number with three significant digits (for intervals).
+fn short(v: f64) -> String {
+    if !v.is_finite() {
+        return "–".into();
+    }
+    let a = v.abs();
+    if a != 0.0 && !(1e-2..1e4).contains(&a) {
+        format!("{v:.2e}")
+    } else if a >= 100.0 {
+        format!("{v:.0}")
+    } else if a >= 10.0 {
+        format!("{v:.1}")
+    } else if a >= 1.0 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// A value and its interval: `1.23e-3 [1.10e-3, 1.37e-3]`.
+fn value(e: &Estimate) -> String {
+    if e.lo.is_finite() && e.hi.is_finite() {
+        format!("{} [{}, {}]", short(e.value), short(e.lo), short(e.hi))
+    } else {
+        short(e.value)
+    }
+}
+
+/// A ratio and its interval, marked "n.s." when the interval contains 1.
+pub fn ratio(e: &Estimate) -> String {
+    let mark = if e.not_significant() { " n.s." } else { "" };
+    format!("{}{mark}", value(e))
+}
+
+fn optional(e: &Option<Estimate>, f: fn(&Estimate) -> String) -> String {
+    e.as_ref().map_or_else(|| "–".into(), f)
+}
+
+fn paper(v: Option<f64>) -> String {
     v.filter(|v| v.is_finite())
         .map_or_else(|| "–".into(), |v| format!("{v:.2}"))
 }
 
-/// The balance heuristic's row at the same budget.
-fn balance<'a>(rows: &'a [Row], budget: &str) -> Option<&'a Row> {
-    rows.iter()
-        .find(|r| r.kind == balance::NAME && r.budget == budget)
+/// A reading off a curve, with its extent: extrapolated values are marked "ext.", and beyond
+/// twice the ladder's times only the bound is given.
+fn reading(r: &Option<Reading>, bound: impl Fn(bool) -> String) -> String {
+    match r {
+        None => "–".into(),
+        Some(Reading {
+            extent: Extent::Beyond { above },
+            ..
+        }) => bound(*above),
+        Some(Reading {
+            estimate,
+            extent: Extent::Extrapolated,
+        }) => format!("{} ext.", ratio(estimate)),
+        Some(Reading { estimate, .. }) => ratio(estimate),
+    }
 }
 
-fn mode(row: &Row) -> Option<&str> {
-    (!row.mode.is_empty()).then_some(row.mode.as_str())
+/// Whether an integrator beats balance at equal time: from the interval of its error ratio.
+fn verdict(r: &Option<Reading>) -> &'static str {
+    match r {
+        Some(Reading {
+            estimate,
+            extent: Extent::Within | Extent::Extrapolated,
+        }) => {
+            if estimate.hi < 1.0 {
+                "yes"
+            } else if estimate.lo > 1.0 {
+                "no, worse"
+            } else {
+                "not significant"
+            }
+        }
+        _ => "–",
+    }
+}
+
+fn estimate_columns(name: &str) -> [String; 3] {
+    [name.to_string(), format!("{name}_lo"), format!("{name}_hi")]
+}
+
+fn estimate_fields(e: Option<&Estimate>) -> [String; 3] {
+    e.map_or_else(
+        || [String::new(), String::new(), String::new()],
+        |e| [e.value, e.lo, e.hi].map(|v| format!("{v:e}")),
+    )
+}
+
+fn write_csv(path: &Path, header: Vec<String>, records: Vec<Vec<String>>) -> Result<()> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    writer.write_record(&header)?;
+    for record in records {
+        writer.write_record(&record)?;
+    }
+    let bytes = writer.into_inner()?;
+    write_atomically(path, |file| {
+        std::io::Write::write_all(file, &bytes).map_err(|e| e.to_string())
+    })?;
+    Ok(())
+}
+
+/// The columns of a row in `results.csv`: its statistics, then its ratios to balance.
+fn row_columns() -> Vec<String> {
+    let mut header: Vec<String> = [
+        "scene",
+        "group",
+        "x",
+        "integrator",
+        "kind",
+        "samples",
+        "runs",
+        "width",
+        "height",
+        "wall_time",
+        "z",
+        "relative_variance_top_share",
+        "variance_top_share",
+    ]
+    .map(String::from)
+    .to_vec();
+    for name in [
+        "cpu_time",
+        "relative_variance",
+        "variance",
+        "relative_mse",
+        "delta_e",
+        "sampling_variance",
+        "sampling_variance_estimate",
+        "sampling_variance_median",
+        "bsdf_fraction",
+        "alpha_median",
+        "efficiency",
+        "ratio_relative_variance",
+        "ratio_median_variance",
+        "ratio_variance",
+        "ratio_relative_mse",
+        "ratio_delta_e",
+        "ratio_sampling_variance",
+        "ratio_sampling_variance_estimate",
+        "ratio_cpu_time",
+        "ratio_efficiency",
+        "ratio_paper_efficiency",
+    ] {
+        header.extend(estimate_columns(name));
+    }
+    header
+}
+
+fn row_record(s: &SceneAnalysis, group: &str, x: f64, r: &Row) -> Vec<String> {
+    let mut record = vec![
+        s.name.clone(),
+        group.to_string(),
+        if x.is_finite() {
+            format!("{x}")
+        } else {
+            String::new()
+        },
+        r.label.clone(),
+        r.kind.clone(),
+        r.samples.to_string(),
+        r.runs.to_string(),
+        s.width.to_string(),
+        s.height.to_string(),
+        format!("{:e}", r.wall_time),
+        format!("{:.3}", r.z),
+        format!("{:.4}", r.relative_variance_top),
+        format!("{:.4}", r.variance_top),
+    ];
+    let q = &r.ratios;
+    for e in [
+        Some(&r.cpu_time),
+        Some(&r.relative_variance),
+        Some(&r.variance),
+        Some(&r.relative_mse),
+        Some(&r.delta_e),
+        r.sampling_variance.as_ref(),
+        r.sampling_variance_estimate.as_ref(),
+        r.sampling_variance_median.as_ref(),
+        r.bsdf_fraction.as_ref(),
+        r.alpha_median.as_ref(),
+        Some(&r.efficiency),
+        Some(&q.relative_variance),
+        Some(&q.median_variance),
+        Some(&q.variance),
+        Some(&q.relative_mse),
+        Some(&q.delta_e),
+        q.sampling_variance.as_ref(),
+        q.sampling_variance_estimate.as_ref(),
+        Some(&q.cpu_time),
+        Some(&q.efficiency),
+        q.paper_efficiency.as_ref(),
+    ] {
+        record.extend(estimate_fields(e));
+    }
+    record
+}
+
+/// `results.csv` and `trade.csv`.
+pub fn write_csvs(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
+    let mut records = Vec::new();
+    for s in scenes {
+        for r in s.rows.iter().flatten() {
+            records.push(row_record(s, "curve", f64::NAN, r));
+        }
+        for p in &s.paper {
+            records.push(row_record(s, "paper", f64::NAN, &p.row));
+        }
+        for p in &s.sweeps {
+            let group = format!("sweep {}", p.sweep.name());
+            records.push(row_record(s, &group, p.x, &p.row));
+        }
+    }
+    write_csv(&out.join("results.csv"), row_columns(), records)?;
+
+    let mut header: Vec<String> = [
+        "scene",
+        "integrator",
+        "runs",
+        "target_budget",
+        "target_error",
+        "target_time",
+    ]
+    .map(String::from)
+    .to_vec();
+    for name in ["time_to_target", "speedup", "equal_time_ratio"] {
+        header.extend(estimate_columns(name));
+        header.push(format!("{name}_extent"));
+    }
+    let mut records = Vec::new();
+    for s in scenes {
+        for t in &s.trade {
+            let mut record = vec![
+                s.name.clone(),
+                t.label.clone(),
+                s.runs.to_string(),
+                s.target_budget.to_string(),
+                format!("{:e}", s.target_error),
+                format!("{:e}", s.target_time),
+            ];
+            for r in [&t.time_to_target, &t.speedup, &t.equal_time_ratio] {
+                record.extend(estimate_fields(r.as_ref().map(|r| &r.estimate)));
+                record.push(
+                    match r.map(|r| r.extent) {
+                        None => "",
+                        Some(Extent::Within) => "within",
+                        Some(Extent::Extrapolated) => "extrapolated",
+                        Some(Extent::Beyond { above: true }) => "above",
+                        Some(Extent::Beyond { above: false }) => "below",
+                    }
+                    .to_string(),
+                );
+            }
+            records.push(record);
+        }
+    }
+    write_csv(&out.join("trade.csv"), header, records)
 }
 
 /// The prefix that makes a path inside the output directory relative to the report's directory.
@@ -151,72 +303,86 @@ fn link_prefix(config: &StudyConfig) -> String {
     }
 }
 
-pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<()> {
+fn table_head(md: &mut String, columns: &[&str]) -> Result<()> {
+    writeln!(md, "| {} |", columns.join(" | "))?;
+    writeln!(md, "|{}", "---|".repeat(columns.len()))?;
+    Ok(())
+}
+
+fn table_row(md: &mut String, cells: &[String]) -> Result<()> {
+    writeln!(md, "| {} |", cells.join(" | "))?;
+    Ok(())
+}
+
+fn figure(
+    md: &mut String,
+    config: &StudyConfig,
+    prefix: &str,
+    file: &str,
+    caption: &str,
+) -> Result<()> {
+    if config.out.join(file).exists() {
+        writeln!(md, "![{caption}]({prefix}{file})\n\n*{caption}.*\n")?;
+    }
+    Ok(())
+}
+
+pub fn write_markdown(config: &StudyConfig, scenes: &[SceneAnalysis]) -> Result<()> {
     let mut md = String::new();
     let prefix = link_prefix(config);
-    let scene_list: Vec<String> = config
-        .scenes
-        .iter()
-        .map(|p| p.display().to_string())
-        .collect();
     writeln!(md, "# lumis study\n")?;
     if let Some(command) = &config.command {
         writeln!(md, "Made by `{command}`.\n")?;
     }
+    let scene_list: Vec<String> = config
+        .scenes
+        .iter()
+        .map(|p| format!("`{}`", p.display()))
+        .collect();
+    let integrators: Vec<String> = config
+        .integrators
+        .iter()
+        .map(|c| format!("`{}`", c.label))
+        .collect();
+    let budgets: Vec<String> = config.budgets.iter().map(u32::to_string).collect();
     writeln!(
         md,
-        "Scenes: {}. N = {} samples per light, K = {} runs (seeds {}–{}){}.\n",
+        "Scenes {}; integrators {}; budgets N = {} samples per light per camera sample; \
+         K₀ = {} runs (seeds {} + 1, 2, …), doubled up to {} until the headline ratio (the first \
+         integrated α's relative variance over balance's at the target budget) is within ±{} %; \
+         the paper's rows and the sweeps keep K₀{}.\n",
         scene_list.join(", "),
-        config.samples,
+        integrators.join(", "),
+        budgets.join(", "),
         config.runs,
-        config.seed + 1,
-        config.seed + config.runs as u64,
+        config.seed,
+        config.max_runs,
+        config.precision * 100.0,
         if config.overrides.is_empty() {
             String::new()
         } else {
-            format!(", overrides `{}`", config.overrides.join(" "))
+            format!("; overrides `{}`", config.overrides.join(" "))
         }
     )?;
     writeln!(
         md,
-        "V[L₁]: sampling variance of the one-sample estimator (mean over pixels); V[L_N]: \
-         variance of the image across runs (mean over pixels); rel. MSE and ΔE*ab (mean CIE76 \
-         after gamma 2.2 and clamping, as the paper) against the reference; time: median wall \
-         time of a run; CPU: its CPU time, all threads (other programs on the machine do not \
-         count in it); efficiency: 1 / (V[L_N] × CPU time); z: the image's mean luminance against \
-         the reference's, in standard errors. Ratios are to the balance heuristic at the same \
-         budget; *paper* columns are the paper's ratios for its scene of the same number \
-         (Tables 1 and 2; its efficiency uses V[L₁]).\n"
+        "Errors are relative to the reference per pixel: *relative variance* is the mean over \
+         pixels of V_p / (ref_p² + ε), V_p the variance of pixel p across the K runs, with \
+         ε = ({} × the reference's mean luminance)²; *rel. MSE* the mean of ((Y − ref)² − the \
+         reference's own variance) / (ref² + ε); ΔE*ab the paper's Lab error. Every interval is \
+         95 %, from a jackknife over runs stratified by {}×{}-pixel blocks (runs pair across \
+         integrators: the same seeds); a ratio marked *n.s.* has an interval containing 1. \
+         `docs/study.md` defines every quantity.\n",
+        config.epsilon, config.block, config.block
     )?;
-    summary(&mut md, scenes)?;
+    summary(&mut md, config, scenes, &prefix)?;
     if let Some(notes) = &config.notes {
         let text = std::fs::read_to_string(notes)?;
         writeln!(md, "{}\n", text.trim_end())?;
     }
-    for (file, caption) in [
-        (
-            "plots/clamp.png",
-            "Clamping α (paper Figure 2): V[L_N] of integrated α against the size of the interval around ½ that α is clamped to, relative to the best size, per scene",
-        ),
-        (
-            "plots/m.png",
-            "Samples M that estimate α (paper Figure 7): V[L_N] at fixed N against M, relative to the best M, per scene",
-        ),
-        (
-            "plots/convergence-l1.png",
-            "Integrated α with M = N/4 of the study fixed (paper Figure 3): V[L₁] against N, relative to the preprocessed α of the table",
-        ),
-        (
-            "plots/convergence-ln.png",
-            "Convergence in N with M fixed (paper Figure 4): V[L_N] of integrated α and of the balance heuristic, relative to α's at N = M",
-        ),
-    ] {
-        if config.out.join(file).exists() {
-            writeln!(md, "![{caption}]({prefix}{file})\n\n*{caption}.*\n")?;
-        }
-    }
-    for results in scenes {
-        scene_section(&mut md, config, results, &prefix)?;
+    sweeps(&mut md, config, scenes, &prefix)?;
+    for s in scenes {
+        scene_section(&mut md, config, s, &prefix)?;
     }
     let bytes = md.into_bytes();
     write_atomically(&config.report_path(), |file| {
@@ -225,164 +391,459 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneResults]) -> Result<(
     Ok(())
 }
 
-/// Integrated and preprocessed α against balance, ours beside the paper's, one line a scene.
-fn summary(md: &mut String, scenes: &[SceneResults]) -> Result<()> {
-    writeln!(md, "## Summary: α against the balance heuristic\n")?;
+fn summary(
+    md: &mut String,
+    config: &StudyConfig,
+    scenes: &[SceneAnalysis],
+    prefix: &str,
+) -> Result<()> {
+    writeln!(md, "## Summary: the trade against the balance heuristic\n")?;
     writeln!(
         md,
-        "| scene | α V[L₁] ratio | paper | α V[L_N] ratio | α ΔE ratio | paper | α efficiency ratio | paper | preprocessed α V[L₁] ratio | paper |"
+        "Per scene, the *target error* is balance's relative variance at the target budget and \
+         the *equal-time point* balance's CPU time there. *Speed-up*: balance's CPU time to reach \
+         the target error over the integrator's (> 1: faster), read off the curves by \
+         interpolating log time against log error between budgets; *error at equal time*: the \
+         integrator's relative variance at the equal-time point over balance's (< 1: better). \
+         \"ext.\" marks values extrapolated beyond the ladder (by up to a factor 2 in time); \
+         beyond that only a bound is given.\n"
     )?;
-    writeln!(md, "|---|---|---|---|---|---|---|---|---|---|")?;
-    for s in scenes {
-        let budget = "equal samples";
-        let Some(b) = balance(&s.rows, budget) else {
-            continue;
-        };
-        let find = |pre: bool| {
-            s.rows.iter().find(|r| {
-                r.kind == alpha::NAME
-                    && r.budget == budget
-                    && (r.mode == alpha::PREPROCESSED) == pre
-            })
-        };
-        let p = paper::scene(&s.path);
-        let alpha = find(false);
-        let pre = find(true);
-        writeln!(
+    let headline = config.headline().map(|c| c.label.clone());
+    if let Some(h) = &headline {
+        table_head(
             md,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
-            s.name,
-            ratio(alpha.map(|a| a.sampling_variance / b.sampling_variance)),
-            ratio(p.and_then(|p| p.sampling_variance.ratio(alpha::NAME, None))),
-            ratio(alpha.map(|a| a.estimator_variance / b.estimator_variance)),
-            ratio(alpha.map(|a| a.lab_error / b.lab_error)),
-            ratio(p.and_then(|p| p.lab_error.ratio(alpha::NAME, None))),
-            ratio(alpha.map(|a| a.efficiency / b.efficiency)),
-            ratio(p.and_then(|p| Some(
-                paper::efficiency(p, alpha::NAME, None)?
-                    / paper::efficiency(p, balance::NAME, None)?
-            ))),
-            ratio(pre.map(|a| a.sampling_variance / b.sampling_variance)),
-            ratio(p.and_then(|p| {
-                p.sampling_variance
-                    .ratio(alpha::NAME, Some(alpha::PREPROCESSED))
-            })),
+            &[
+                "scene",
+                "K",
+                &format!("`{h}` / balance rel. variance at the target budget"),
+                "speed-up at equal error",
+                "error ratio at equal time",
+                "beats balance at equal time (95 %)?",
+            ],
         )?;
+        for s in scenes {
+            let Some(t) = s.trade.iter().find(|t| &t.label == h) else {
+                continue;
+            };
+            let at_target = s.rows[t.integrator]
+                .iter()
+                .find(|r| r.samples == s.target_budget)
+                .map(|r| format!("{} (N = {})", ratio(&r.ratios.relative_variance), r.samples))
+                .unwrap_or_default();
+            table_row(
+                md,
+                &[
+                    s.name.clone(),
+                    format!(
+                        "{}{}",
+                        s.runs,
+                        if s.interrupted { " (interrupted)" } else { "" }
+                    ),
+                    at_target,
+                    reading(&t.speedup, |above| {
+                        if above {
+                            "< ½ of the ladder".into()
+                        } else {
+                            "beyond the ladder".into()
+                        }
+                    }),
+                    reading(&t.equal_time_ratio, |_| "beyond the ladder".into()),
+                    verdict(&t.equal_time_ratio).to_string(),
+                ],
+            )?;
+        }
+        writeln!(md)?;
+    }
+    // Every integrator's speed-up, scene by scene.
+    let labels: Vec<&str> = config
+        .integrators
+        .iter()
+        .map(|c| c.label.as_str())
+        .collect();
+    let mut columns = vec!["scene".to_string()];
+    columns.extend(labels.iter().map(|l| format!("`{l}`")));
+    let columns: Vec<&str> = columns.iter().map(String::as_str).collect();
+    writeln!(
+        md,
+        "Speed-up over balance at equal error, every integrator:\n"
+    )?;
+    table_head(md, &columns)?;
+    for s in scenes {
+        let mut cells = vec![s.name.clone()];
+        for t in &s.trade {
+            cells.push(reading(&t.speedup, |above| {
+                if above {
+                    "< bound".into()
+                } else {
+                    "> bound".into()
+                }
+            }));
+        }
+        table_row(md, &cells)?;
     }
     writeln!(md)?;
+    figure(
+        md,
+        config,
+        prefix,
+        "plots/summary.png",
+        "Speed-up over the balance heuristic at equal error, per scene and integrator, with 95 % intervals (log scale; right of 1 is faster)",
+    )
+}
+
+fn sweeps(
+    md: &mut String,
+    config: &StudyConfig,
+    scenes: &[SceneAnalysis],
+    prefix: &str,
+) -> Result<()> {
+    let any = |sweep: Sweep| {
+        scenes
+            .iter()
+            .any(|s| s.sweeps.iter().any(|p| p.sweep == sweep))
+    };
+    if !scenes.iter().any(|s| !s.sweeps.is_empty()) {
+        return Ok(());
+    }
+    writeln!(md, "## Sweeps of α's parameters\n")?;
+    writeln!(
+        md,
+        "Integrated α at N = {} (K₀ runs), each point's relative variance over balance's at the \
+         same N; the convergence sweep (N with M = N/4 of the sweep budget fixed) also gives \
+         V[L₁] on the estimate basis (pilot included) over balance's.\n",
+        config.sweep_budget()
+    )?;
+    for (sweep, what, file, caption) in [
+        (
+            Sweep::Clamp,
+            "interval size s",
+            "plots/clamp.png",
+            "Clamping α to [½ − s/2, ½ + s/2] (paper Figure 2): relative variance over balance's, 95 % intervals",
+        ),
+        (
+            Sweep::AlphaSamples,
+            "M",
+            "plots/m.png",
+            "Pilot samples M that estimate α at fixed N (paper Figure 7): relative variance over balance's, 95 % intervals",
+        ),
+        (
+            Sweep::Convergence,
+            "N",
+            "plots/convergence.png",
+            "N with M fixed (paper Figures 3 and 4): V[L₁] (estimate basis) and relative variance of integrated α over balance's at the same N, 95 % intervals",
+        ),
+    ] {
+        if !any(sweep) {
+            continue;
+        }
+        writeln!(md, "### {} sweep\n", sweep.name())?;
+        let xs: Vec<f64> = {
+            let mut xs: Vec<f64> = scenes
+                .iter()
+                .flat_map(|s| s.sweeps.iter().filter(|p| p.sweep == sweep).map(|p| p.x))
+                .collect();
+            xs.sort_by(f64::total_cmp);
+            xs.dedup();
+            xs
+        };
+        let mut columns = vec!["scene".to_string()];
+        columns.extend(xs.iter().map(|x| format!("{what} = {x}")));
+        let columns: Vec<&str> = columns.iter().map(String::as_str).collect();
+        table_head(md, &columns)?;
+        for s in scenes {
+            let mut cells = vec![s.name.clone()];
+            for x in &xs {
+                cells.push(
+                    s.sweeps
+                        .iter()
+                        .find(|p| p.sweep == sweep && p.x == *x)
+                        .map_or_else(|| "–".into(), |p| ratio(&p.row.ratios.relative_variance)),
+                );
+            }
+            table_row(md, &cells)?;
+        }
+        writeln!(md)?;
+        figure(md, config, prefix, file, caption)?;
+    }
     Ok(())
 }
 
 fn scene_section(
     md: &mut String,
     config: &StudyConfig,
-    s: &SceneResults,
+    s: &SceneAnalysis,
     prefix: &str,
 ) -> Result<()> {
     writeln!(
         md,
-        "## {} — `{}` ({}×{})\n",
+        "## {} — `{}` ({}×{}, K = {}{})\n",
         s.name,
         s.path.display(),
         s.width,
-        s.height
+        s.height,
+        s.runs,
+        if s.interrupted { ", interrupted" } else { "" }
     )?;
-    let r = &s.reference;
-    let mut reference = format!("Reference: `{}`", r.path.display());
-    if let Some(n) = r.samples {
+    let mut reference = format!("Reference: `{}`", s.reference_path.display());
+    if let Some(n) = s.reference_samples {
         write!(
             reference,
-            ", balance heuristic, {n} samples per light per pixel"
+            ", balance heuristic, {n} samples per light per pixel in 16 shards"
         )?;
     }
-    if let Some(t) = r.time {
-        write!(reference, ", rendered in {t:.1} s")?;
+    if let Some(t) = s.reference_cpu_time {
+        write!(reference, ", {t:.1} s of CPU")?;
     }
-    if r.cached {
+    if s.reference_cached {
         write!(reference, " (cached)")?;
     }
-    // The reference's own error, next to what it measures: negligible when this is small.
-    if let (Some(v), Some(b)) = (r.variance(), balance(&s.rows, "equal samples")) {
-        write!(
-            reference,
-            "; its own variance is {:.2} % of the balance heuristic's V[L_N], so it adds that \
-             much to each MSE",
-            100.0 * v / b.estimator_variance
+    write!(
+        reference,
+        "; its own relative variance is {:.2} % of balance's at N = {} (removed from every rel. MSE)",
+        100.0 * s.reference_share,
+        s.budgets.last().copied().unwrap_or(0)
+    )?;
+    writeln!(md, "{reference}.\n")?;
+    if let Some((label, e, met)) = &s.headline {
+        writeln!(
+            md,
+            "K rule: `{label}` / balance relative variance at N = {} is {} with K = {} ({}).\n",
+            s.target_budget,
+            ratio(e),
+            s.runs,
+            if *met {
+                format!("within ±{} %", config.precision * 100.0)
+            } else {
+                format!(
+                    "not within ±{} %: the cap, or an interrupted study",
+                    config.precision * 100.0
+                )
+            }
         )?;
     }
-    writeln!(md, "{reference}.\n")?;
-    let p = paper::scene(&s.path);
-    for budget in ["equal samples", "equal time"] {
-        let rows: Vec<&Row> = s.rows.iter().filter(|r| r.budget == budget).collect();
-        if rows.is_empty() {
+    writeln!(
+        md,
+        "Target error: relative variance {} (balance at N = {}); equal-time point: {} s of CPU.\n",
+        sig(s.target_error),
+        s.target_budget,
+        sig(s.target_time)
+    )?;
+    writeln!(md, "### The trade\n")?;
+    table_head(
+        md,
+        &[
+            "integrator",
+            "CPU time to the target (s)",
+            "speed-up over balance",
+            "error ratio at equal time",
+            "beats balance at equal time?",
+        ],
+    )?;
+    for t in &s.trade {
+        table_row(
+            md,
+            &[
+                format!("`{}`", t.label),
+                reading(&t.time_to_target, |above| {
+                    let times = &s.curves[t.integrator].points;
+                    if above {
+                        format!(
+                            "> {}",
+                            short(2.0 * times.last().map_or(f64::NAN, |p| p.cpu_time.value))
+                        )
+                    } else {
+                        format!(
+                            "< {}",
+                            short(0.5 * times.first().map_or(f64::NAN, |p| p.cpu_time.value))
+                        )
+                    }
+                }),
+                reading(&t.speedup, |above| {
+                    if above {
+                        "< bound".into()
+                    } else {
+                        "> bound".into()
+                    }
+                }),
+                reading(&t.equal_time_ratio, |_| "beyond the ladder".into()),
+                verdict(&t.equal_time_ratio).to_string(),
+            ],
+        )?;
+    }
+    writeln!(md)?;
+    if !s.front.is_empty() {
+        let front: Vec<String> = s
+            .front
+            .iter()
+            .map(|f| {
+                format!(
+                    "`{}` from {} s to {} s",
+                    f.label,
+                    short(f.from),
+                    short(f.to)
+                )
+            })
+            .collect();
+        writeln!(
+            md,
+            "Pareto front (lowest relative variance at each CPU time, point estimates): {}.\n",
+            front.join("; ")
+        )?;
+    }
+    figure(
+        md,
+        config,
+        prefix,
+        &format!("plots/{}-curves.png", s.name),
+        "Relative variance and rel. MSE against CPU time (log-log), each integrator through its budgets with its 95 % band; dashed: the Pareto front; dotted: the target error and the equal-time point",
+    )?;
+
+    writeln!(md, "### Relative variance over balance's, per budget\n")?;
+    let mut columns = vec!["integrator".to_string()];
+    columns.extend(s.budgets.iter().map(|n| format!("N = {n}")));
+    let columns: Vec<&str> = columns.iter().map(String::as_str).collect();
+    table_head(md, &columns)?;
+    for (i, rows) in s.rows.iter().enumerate() {
+        if i == s.balance {
             continue;
         }
-        let b = balance(&s.rows, budget);
-        let heading = if budget == "equal samples" {
-            format!("Equal samples (N = {})", config.samples)
-        } else {
-            "Equal time (N chosen to match `alpha`'s CPU time)".into()
+        let mut cells = vec![format!("`{}`", rows[0].label)];
+        cells.extend(rows.iter().map(|r| ratio(&r.ratios.relative_variance)));
+        table_row(md, &cells)?;
+    }
+    let mut cells = vec!["balance: CPU s per run".to_string()];
+    cells.extend(s.rows[s.balance].iter().map(|r| value(&r.cpu_time)));
+    table_row(md, &cells)?;
+    writeln!(md)?;
+
+    writeln!(
+        md,
+        "### At the target budget (N = {}): robust statistics and α\n",
+        s.target_budget
+    )?;
+    writeln!(
+        md,
+        "Ratios to balance. *median V ratio*: the median over pixels of V_p / V_p(balance); \
+         *V[L_N]*: the plain mean of V_p, which a few bright pixels dominate (*top 0.1 %*: the \
+         share of balance's V[L_N] and of its relative variance held by its largest 0.1 % of \
+         pixels); *z*: the image's mean luminance against the reference's, in standard errors.\n"
+    )?;
+    table_head(
+        md,
+        &[
+            "integrator",
+            "rel. variance",
+            "median V ratio",
+            "rel. MSE",
+            "V[L_N]",
+            "ΔE*ab",
+            "CPU time",
+            "efficiency",
+            "BSDF samples",
+            "median α̂",
+            "z",
+        ],
+    )?;
+    for rows in &s.rows {
+        let Some(r) = rows.iter().find(|r| r.samples == s.target_budget) else {
+            continue;
         };
-        writeln!(md, "### {heading}\n")?;
+        let q = &r.ratios;
+        table_row(
+            md,
+            &[
+                format!("`{}`", r.label),
+                ratio(&q.relative_variance),
+                ratio(&q.median_variance),
+                ratio(&q.relative_mse),
+                ratio(&q.variance),
+                ratio(&q.delta_e),
+                ratio(&q.cpu_time),
+                ratio(&q.efficiency),
+                optional(&r.bsdf_fraction, value),
+                optional(&r.alpha_median, value),
+                format!("{:.2}", r.z),
+            ],
+        )?;
+    }
+    if let Some(b) = s.rows[s.balance]
+        .iter()
+        .find(|r| r.samples == s.target_budget)
+    {
         writeln!(
             md,
-            "| integrator | N | V[L₁] | ratio | paper | median V[L₁] | V[L_N] | ratio | rel. MSE | ΔE*ab | ratio | paper | time (s) | CPU (s) | efficiency | ratio | z |"
+            "\nBalance's largest 0.1 % of pixels hold {:.0} % of its V[L_N] and {:.0} % of its relative variance.",
+            100.0 * b.variance_top,
+            100.0 * b.relative_variance_top
+        )?;
+    }
+    writeln!(md)?;
+
+    if !s.paper.is_empty() {
+        writeln!(
+            md,
+            "### Like for like with the paper (N = 256, K₀ = {} runs)\n",
+            s.base_runs
         )?;
         writeln!(
             md,
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+            "Ratios to balance. V[L₁] is the variance of the one-sample estimator: *estimate \
+             basis* over every sample of the estimate (for integrated α the pilot's M = N/2 \
+             too, as the paper's Table 2), *settled split* over the samples at the split the \
+             method settled on (for integrated α the N − M samples at α̂ only). The *paper* \
+             columns are its ratios for the same method and pilot size (Table 1's V[L₁], \
+             Table 2's ΔE and time, efficiency 1/(V[L₁] × time)); \"–\" where the quantity is \
+             not the same.\n"
         )?;
-        for row in rows {
-            let of_balance = |f: fn(&Row) -> f64| b.map(|b| f(row) / f(b));
-            let paper_v = p.and_then(|p| p.sampling_variance.ratio(&row.kind, mode(row)));
-            let paper_lab = p.and_then(|p| p.lab_error.ratio(&row.kind, mode(row)));
-            writeln!(
+        table_head(
+            md,
+            &[
+                "integrator",
+                "V[L₁] estimate basis",
+                "paper",
+                "V[L₁] settled split",
+                "ΔE*ab",
+                "paper",
+                "CPU time",
+                "paper",
+                "efficiency 1/(V[L₁]·t)",
+                "paper",
+            ],
+        )?;
+        for p in &s.paper {
+            let q = &p.row.ratios;
+            table_row(
                 md,
-                "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} |",
-                row.integrator,
-                row.samples,
-                sig(row.sampling_variance),
-                ratio(of_balance(|r| r.sampling_variance)),
-                if budget == "equal samples" {
-                    ratio(paper_v)
-                } else {
-                    "–".into()
-                },
-                sig(row.sampling_variance_median),
-                sig(row.estimator_variance),
-                ratio(of_balance(|r| r.estimator_variance)),
-                sig(row.rel_mse),
-                sig(row.lab_error),
-                ratio(of_balance(|r| r.lab_error)),
-                if budget == "equal samples" {
-                    ratio(paper_lab)
-                } else {
-                    "–".into()
-                },
-                sig(row.time),
-                sig(row.cpu_time),
-                sig(row.efficiency),
-                ratio(of_balance(|r| r.efficiency)),
-                row.z,
+                &[
+                    format!("`{}`", p.row.label),
+                    optional(&q.sampling_variance_estimate, ratio),
+                    self::paper(p.sampling_variance),
+                    optional(&q.sampling_variance, ratio),
+                    ratio(&q.delta_e),
+                    self::paper(p.delta_e),
+                    ratio(&q.cpu_time),
+                    self::paper(p.time),
+                    optional(&q.paper_efficiency, ratio),
+                    self::paper(p.efficiency),
+                ],
             )?;
         }
         writeln!(md)?;
     }
-    let name = &s.name;
-    let exists = |file: &str| config.out.join(file).exists();
-    for (file, caption) in [
-        (
-            format!("plots/{name}-time.png"),
-            "Variance and error against CPU time (log-log): each integrator at equal samples and equal time",
+    let alpha_label = s
+        .panel
+        .as_ref()
+        .and_then(|p| p.alpha.as_ref().map(|a| a.0.clone()))
+        .unwrap_or_else(|| "α".into());
+    figure(
+        md,
+        config,
+        prefix,
+        &format!("panels/{}.png", s.name),
+        &format!(
+            "Top: reference, balance and `{alpha_label}` (first run, N = {}), α map (red: light sampling, green: BSDF sampling). Bottom: ΔE*ab of balance and of α (scale below them), and the quarter of the image where balance errs most, ×2",
+            s.target_budget
         ),
-        (
-            format!("panels/{name}.png"),
-            "Top: reference, balance, α (equal time when measured), α map (red: light sampling, green: BSDF sampling, yellow: ½). Bottom: ΔE*ab of balance and of α (0 … 10: black, red, yellow, white), and the quarter of the image where balance errs most, ×2, for balance and α",
-        ),
-    ] {
-        if exists(&file) {
-            writeln!(md, "![{caption}]({prefix}{file})\n\n*{caption}.*\n")?;
-        }
-    }
+    )?;
     Ok(())
 }

@@ -5,7 +5,9 @@
 //! What the layers need is kept per pixel as sums over camera samples (the pixel's sums, see
 //! `lumis_core::integrator`): per light j, at `PER_LIGHT · j`, Σ α, the number of shading
 //! points, Σ of the light's contribution (luminance), and Σ Y, Σ Y², the number of samples Y
-//! (the one-sample estimates of the measured phases); then the BSDF and light sample counts.
+//! (the one-sample estimates of the measured phases), then Σ n·s² and Σ n over the counted
+//! phases (s² a phase's unbiased variance of Y, n its sample count); then the BSDF and light
+//! sample counts.
 
 use crate::allocation::LightEstimate;
 use crate::phase::{Phase, PhaseRole};
@@ -23,8 +25,14 @@ pub const SAMPLING_VARIANCE: &str = "sampling_variance";
 pub const SAMPLE_COUNTS: &str = "samples";
 /// Channel of `alpha`: α of all lights, weighted by their contributions.
 pub const COMBINED: &str = "combined";
-/// Channel of `sampling_variance`.
+/// Channel of `sampling_variance`: V[L₁] of the samples drawn at the split the method settled
+/// on (the measured phases: for integrated α, the N − M samples at α̂).
 pub const Y: &str = "Y";
+/// Channel of `sampling_variance`: V[L₁] over every sample that makes the estimate (the counted
+/// phases: for integrated α the M pilot samples at α = ½ too), each phase's unbiased variance
+/// weighted by its sample count. This is the paper's basis: its integrated α's V[L₁] is the
+/// mean of the pilot's and the second phase's when M = N/2. Equal to [`Y`] for one-phase methods.
+pub const ESTIMATE: &str = "estimate";
 /// Channels of `samples`.
 pub const BSDF: &str = "bsdf";
 pub const LIGHT: &str = "light";
@@ -48,7 +56,7 @@ pub fn alpha_color(alpha: f64) -> [f32; 3] {
 }
 
 /// Sums kept per light in a pixel's sums.
-const PER_LIGHT: usize = 6;
+const PER_LIGHT: usize = 8;
 
 /// Which AOV layers are written.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -67,6 +75,10 @@ pub struct LightTally {
     sum_sq: f64,
     /// Samples of the measured phases.
     count: u32,
+    /// Σ n·s² and Σ n over the counted phases of two samples or more (n the phase's samples,
+    /// s² the unbiased variance of its Y).
+    counted_variance: f64,
+    counted_samples: f64,
     /// Samples of the counted phases.
     n_bsdf: u32,
     n_light: u32,
@@ -78,19 +90,38 @@ impl LightTally {
             self.n_bsdf += phase.split.n_bsdf;
             self.n_light += phase.split.n_light;
         }
+        if !(role.measured || role.counted) {
+            return;
+        }
+        let n = phase.split.n_bsdf as f32 + phase.split.n_light as f32;
+        let (mut sum, mut sum_sq) = (0.0, 0.0);
+        for c in contributions {
+            let y = (luminance(*c) * n) as f64;
+            sum += y;
+            sum_sq += y * y;
+        }
         if role.measured {
-            let n = phase.split.n_bsdf as f32 + phase.split.n_light as f32;
-            let (mut sum, mut sum_sq) = (0.0, 0.0);
-            for c in contributions {
-                let y = (luminance(*c) * n) as f64;
-                sum += y;
-                sum_sq += y * y;
-            }
             self.sum += sum;
             self.sum_sq += sum_sq;
             self.count += phase.split.total();
         }
+        let count = phase.split.total() as f64;
+        if role.counted && count >= 2.0 {
+            let variance = ((sum_sq - sum * sum / count) / (count - 1.0)).max(0.0);
+            self.counted_variance += count * variance;
+            self.counted_samples += count;
+        }
     }
+}
+
+/// V[L₁] of the measured phases of one light's sums ([`Y`]), if two samples or more.
+fn measured_variance(st: &[f64]) -> Option<f64> {
+    (st[5] >= 2.0).then(|| ((st[4] - st[3] * st[3] / st[5]) / (st[5] - 1.0)).max(0.0))
+}
+
+/// V[L₁] over the counted phases of one light's sums ([`ESTIMATE`]), if any had two samples.
+fn estimate_variance(st: &[f64]) -> Option<f64> {
+    (st[7] > 0.0).then(|| st[6] / st[7])
 }
 
 fn area_lights(scene: &Scene) -> impl Iterator<Item = usize> + '_ {
@@ -139,7 +170,7 @@ impl AovRequest {
         if self.sampling_variance {
             aovs.push(Aov {
                 name: SAMPLING_VARIANCE.into(),
-                channels: vec![Y.into()],
+                channels: vec![Y.into(), ESTIMATE.into()],
                 preview: false,
             });
         }
@@ -178,6 +209,8 @@ impl AovRequest {
         st[3] += tally.sum;
         st[4] += tally.sum_sq;
         st[5] += tally.count as f64;
+        st[6] += tally.counted_variance;
+        st[7] += tally.counted_samples;
         sums[PER_LIGHT * lights] += tally.n_bsdf as f64;
         sums[PER_LIGHT * lights + 1] += tally.n_light as f64;
     }
@@ -238,15 +271,95 @@ impl AovRequest {
         let lights = scene.emitters.len();
         if self.sampling_variance {
             let variance: f64 = (0..lights)
-                .map(stats)
-                .filter(|st| st[5] >= 2.0)
-                .map(|st| ((st[4] - st[3] * st[3] / st[5]) / (st[5] - 1.0)).max(0.0))
+                .filter_map(|j| measured_variance(stats(j)))
                 .sum();
             put(variance as f32);
+            let estimate: f64 = (0..lights)
+                .filter_map(|j| estimate_variance(stats(j)))
+                .sum();
+            put(estimate as f32);
         }
         if self.samples {
             put(sums[PER_LIGHT * lights] as f32);
             put(sums[PER_LIGHT * lights + 1] as f32);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::allocation::SampleSplit;
+    use crate::estimator::SampleRecord;
+    use crate::phase::PhaseRole;
+    use glam::UVec2;
+
+    /// Shows the tally a phase of `n_bsdf + n_light` samples whose one-sample estimates Y are
+    /// `values` (grey contributions Y / n).
+    fn observe(tally: &mut LightTally, n_bsdf: u32, values: &[f32], role: PhaseRole) {
+        let split = SampleSplit {
+            n_bsdf,
+            n_light: values.len() as u32 - n_bsdf,
+        };
+        let records = vec![SampleRecord::default(); values.len()];
+        let phase = Phase {
+            pixel: UVec2::ZERO,
+            light: 0,
+            split,
+            records: &records,
+        };
+        let n = values.len() as f32;
+        let contributions: Vec<Rgb> = values.iter().map(|&y| Rgb::splat(y / n)).collect();
+        tally.observe(&phase, &contributions, role);
+    }
+
+    fn unbiased_variance(values: &[f64]) -> f64 {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0)
+    }
+
+    #[test]
+    fn the_estimate_channel_weighs_every_counted_phase_and_the_y_channel_only_the_measured() {
+        let request = AovRequest::from_names(&[SAMPLING_VARIANCE]);
+        let pilot = [1.0f32, 3.0, 2.0, 6.0];
+        let second = [4.0f32, 4.5, 3.5, 5.0, 4.0, 3.0];
+        let ignored = [100.0f32, -50.0];
+        let mut tally = LightTally::default();
+        // A pilot that steers only (neither counted nor measured), then an integrated-α-like
+        // pair: the first phase counted, the second counted and measured.
+        observe(&mut tally, 1, &ignored, PhaseRole::PILOT);
+        let first_role = PhaseRole {
+            counted: true,
+            measured: false,
+        };
+        observe(&mut tally, 2, &pilot, first_role);
+        observe(&mut tally, 5, &second, PhaseRole::ESTIMATE);
+
+        // One light, one shading point: the sums of one pixel.
+        let mut sums = vec![0.0; PER_LIGHT + 2];
+        let estimate = LightEstimate {
+            value: Rgb::ZERO,
+            alpha: 0.5,
+        };
+        request.add(&mut sums, 0, &estimate, &tally);
+        let as_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<_>>();
+        let (v1, v2) = (
+            unbiased_variance(&as_f64(&pilot)),
+            unbiased_variance(&as_f64(&second)),
+        );
+        let paper_basis = (4.0 * v1 + 6.0 * v2) / 10.0;
+        // The pilot that only steers is not counted either.
+        assert_eq!((sums[PER_LIGHT], sums[PER_LIGHT + 1]), (7.0, 3.0));
+
+        let (measured, all) = (
+            measured_variance(&sums[..PER_LIGHT]).expect("six measured samples"),
+            estimate_variance(&sums[..PER_LIGHT]).expect("ten counted samples"),
+        );
+        assert!((measured - v2).abs() < 1e-9 * v2, "{measured} {v2}");
+        assert!(
+            (all - paper_basis).abs() < 1e-9 * paper_basis,
+            "{all} {paper_basis}"
+        );
     }
 }
