@@ -366,13 +366,15 @@ fn gltf_nodes_are_transformed_and_selectable_by_name() {
 #[test]
 fn every_bundled_scene_renders_finite_values_with_every_integrator() {
     let mut count = 0;
-    let dirs = ["scenes", "scenes/paper"].map(|dir| std::fs::read_dir(repo_path(dir)).unwrap());
+    let mirror = scenes_mirror();
+    let scenes = mirror.path().join("scenes");
+    let dirs = [scenes.clone(), scenes.join("paper")].map(|dir| std::fs::read_dir(dir).unwrap());
     for entry in dirs.into_iter().flatten() {
         let path = entry.unwrap().path();
         if path.extension().is_none_or(|e| e != "ron") {
             continue;
         }
-        generate_assets(&path);
+        generate_assets(&path, &scenes);
         if std::fs::read_to_string(&path).unwrap().contains("plugins:") {
             example_library();
         }
@@ -403,9 +405,34 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
     assert!(count >= 19, "found {count} scenes");
 }
 
+/// `scenes/` rebuilt in a temporary directory as `scenes/` from links to its files (`paper/` a
+/// real folder of links, so that its `../` paths stay inside the copy; `target` beside it, where
+/// the plugin scene finds its library): the assets that scenes generate land there, never in the
+/// source tree.
+fn scenes_mirror() -> tempfile::TempDir {
+    fn link_entries(from: &Path, to: &Path) {
+        for entry in std::fs::read_dir(from).unwrap() {
+            let entry = entry.unwrap();
+            let target = to.join(entry.file_name());
+            if entry.file_name() == "paper" {
+                std::fs::create_dir(&target).unwrap();
+                link_entries(&entry.path(), &target);
+            } else {
+                std::os::unix::fs::symlink(entry.path(), &target).unwrap();
+            }
+        }
+    }
+    let mirror = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(repo_path("target"), mirror.path().join("target")).unwrap();
+    std::fs::create_dir(mirror.path().join("scenes")).unwrap();
+    link_entries(&repo_path("scenes"), &mirror.path().join("scenes"));
+    mirror
+}
+
 /// Runs the asset-generating commands a scene documents in its comments
-/// (`//   cargo run --release -- merl ... -o FILE`), when FILE is missing, as a user would.
-fn generate_assets(scene: &Path) {
+/// (`//   cargo run --release -- merl ... -o scenes/FILE`), when FILE is missing from the
+/// `scenes` copy, as a user would.
+fn generate_assets(scene: &Path, scenes: &Path) {
     let text = std::fs::read_to_string(scene).unwrap();
     for line in text.lines() {
         let Some(command) = line
@@ -433,10 +460,16 @@ fn generate_assets(scene: &Path) {
         let output = args
             .iter()
             .position(|a| a == "-o")
-            .map(|i| repo_path(&args[i + 1]))
+            .map(|i| {
+                let file = args[i + 1].strip_prefix("scenes/").expect("-o scenes/FILE");
+                scenes.join(file)
+            })
             .expect("-o FILE");
         if !output.exists() {
-            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            std::fs::create_dir_all(output.parent().unwrap()).unwrap();
+            let mut args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let o = args.iter().position(|a| *a == "-o").unwrap();
+            args[o + 1] = output.to_str().unwrap();
             let out = lumis(&repo_path(""), &args);
             assert!(
                 out.status.success(),
