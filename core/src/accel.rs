@@ -260,6 +260,13 @@ fn intersect_triangle_permuted<const KX: usize, const KY: usize, const KZ: usize
     Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
 }
 
+/// Whether `ray` meets the triangle `p` (within `ray.t_max`), decided by the same watertight test
+/// and the same rounding as [`Geometry::intersect`]: emitters that draw points on triangles use
+/// it to return only directions whose rays reach the triangle.
+pub fn ray_meets_triangle(ray: &Ray, p: &[Vec3; 3]) -> bool {
+    intersect_triangle(ray, &RayShear::new(ray.direction), ray.t_max, p).is_some()
+}
+
 /// The smallest t in (t_min_bound, t_max) where the ray meets the sphere.
 fn intersect_sphere(ray: &Ray, t_max: f32, s: &Sphere) -> Option<f32> {
     // Ray Tracing Gems, ch. 7: a discriminant that does not cancel catastrophically.
@@ -319,8 +326,26 @@ impl Geometry {
                 }),
             }
         }
+        // A slab test rounds the t at which a ray crosses a box's faces: a ray meeting a triangle
+        // on its box's face (an edge in an axis plane, as on a square light) could be culled
+        // although the watertight triangle test hits it. Each box is widened by the rounding of
+        // the node tests for rays that start within the scene's bounds (a few ε times the
+        // distance from origin to face, at most twice the largest coordinate), with a margin.
+        let extent = prims.iter().fold(0.0f32, |m, p| {
+            let b = p.aabb();
+            m.max(b.min.abs().max_element())
+                .max(b.max.abs().max_element())
+        });
+        let pad = Vec3A::splat(32.0 * f32::EPSILON * extent);
+        let boxes: Vec<Aabb> = prims
+            .iter()
+            .map(|p| {
+                let b = p.aabb();
+                Aabb::new(b.min - pad, b.max + pad)
+            })
+            .collect();
         let bvh = obvhs::cwbvh::builder::build_cwbvh(
-            &prims,
+            &boxes,
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );

@@ -1,5 +1,6 @@
 //! Chi-square goodness-of-fit test of a direction sampler against its density (as Mitsuba's
-//! `ChiSquareTest`): for BSDF and emitter plugins, including third-party ones.
+//! `ChiSquareTest`): for BSDF and emitter plugins, including third-party ones; and the small
+//! statistical toolkit the suite's tests share (seed, multiplicity correction, derived limits).
 //!
 //! Sampled directions are histogrammed over equal-area bins in (φ, cos θ) about an axis; the
 //! density is integrated over each bin with Simpson's rule; bins expecting fewer than 5 samples
@@ -9,12 +10,74 @@
 //! Bins may cover a cap about the axis (`cos_cap > −1`) so that very sharp lobes are resolved;
 //! samples outside the cap and failed samples share one bin, whose expected count is the rest of
 //! the probability mass.
+//!
+//! Every statistical test takes its random numbers from [`test_seed`] (`LUMIS_TEST_SEED`, default
+//! 0), so that a pass is not the luck of one seed: `docs/testing.md` runs the suite under several.
+//! Each test function is one family of checks whose false-alarm rate is [`FAMILY_FALSE_ALARM`],
+//! split over its checks with [`sidak`].
 
 use crate::sampler::Sampler;
 use glam::{DVec3, Vec3};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
+use statrs::distribution::{Binomial, ChiSquared, ContinuousCDF, DiscreteCDF, Normal};
 use std::f64::consts::TAU;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// The environment variable that selects the seed of the statistical tests.
+pub const SEED_VARIABLE: &str = "LUMIS_TEST_SEED";
+
+/// The probability that one statistical test function fails although the code is correct: the
+/// family-wise level of its checks. With about ten such functions in the suite, a correct
+/// build fails a given seed with probability about 10⁻³, and ten seeds with about 1 %.
+pub const FAMILY_FALSE_ALARM: f64 = 1e-4;
+
+/// The seed of the statistical tests: `LUMIS_TEST_SEED` when set, else 0.
+///
+/// # Panics
+/// If the variable is set but is not an unsigned integer (a test run asked for a seed it cannot
+/// have; running with another would hide that).
+pub fn test_seed() -> u64 {
+    match std::env::var(SEED_VARIABLE) {
+        Ok(value) => value.trim().parse().unwrap_or_else(|_| {
+            panic!("{SEED_VARIABLE}={value:?}: the test seed must be an unsigned integer")
+        }),
+        Err(_) => 0,
+    }
+}
+
+/// The random numbers of stream `stream` of a statistical test under the suite's seed. Tests
+/// (and the cases within a test) use distinct streams so that their numbers are independent.
+pub fn test_sampler(stream: u64) -> Sampler {
+    Sampler::new(test_seed(), stream, 0x7e57)
+}
+
+/// The per-test significance that keeps the family-wise level at `alpha` over `tests` tests.
+/// Exact for independent tests; under any dependence the family-wise level stays below
+/// `tests` times it, which is at most α (1 + α·tests/2) (Bonferroni).
+pub fn sidak(alpha: f64, tests: usize) -> f64 {
+    1.0 - (1.0 - alpha).powf(1.0 / tests.max(1) as f64)
+}
+
+/// The z such that a standard normal variable exceeds it in absolute value with probability
+/// `alpha`: the two-sided limit of a z-test at significance `alpha`.
+pub fn z_limit(alpha: f64) -> f64 {
+    let normal = Normal::standard();
+    normal.inverse_cdf(1.0 - alpha / 2.0)
+}
+
+/// The largest count of events, each of probability at most `probability` in `trials`
+/// independent trials, that is exceeded with probability at most `alpha`: a count above it
+/// means the events are more frequent than `probability`, at significance `alpha`.
+pub fn binomial_limit(trials: u64, probability: f64, alpha: f64) -> u64 {
+    let Ok(binomial) = Binomial::new(probability.clamp(0.0, 1.0), trials) else {
+        return trials;
+    };
+    // P(X > k) falls with k; the limit is near the mean, a few standard deviations above it.
+    let mut k = 0;
+    while k < trials && binomial.sf(k) > alpha {
+        k += 1;
+    }
+    k
+}
 
 /// The configuration of one test.
 #[derive(Clone, Debug)]
@@ -28,6 +91,7 @@ pub struct Chi2Test {
     pub samples: usize,
     /// Simpson nodes per axis of each integration region (odd; regions are refined adaptively).
     pub integration_nodes: usize,
+    /// The seed of the sampler's stream; [`test_seed`] by default.
     pub seed: u64,
 }
 
@@ -40,7 +104,7 @@ impl Default for Chi2Test {
             phi_bins: 64,
             samples: 1_000_000,
             integration_nodes: 5,
-            seed: 0,
+            seed: test_seed(),
         }
     }
 }
@@ -76,11 +140,6 @@ pub fn test_bsdf(bsdf: &dyn crate::bsdf::Bsdf, wo: Vec3, test: &Chi2Test) -> Chi
         },
         |wi| bsdf.pdf(wo, wi) as f64,
     )
-}
-
-/// The per-test significance that keeps the family-wise level at `alpha` over `tests` tests.
-pub fn sidak(alpha: f64, tests: usize) -> f64 {
-    1.0 - (1.0 - alpha).powf(1.0 / tests as f64)
 }
 
 /// An orthonormal frame in f64 (Duff et al. 2017).
@@ -277,8 +336,17 @@ fn pooled_chi2(observed: &[f64], expected: &[f64], error: &[f64]) -> (f64, usize
 impl Chi2Outcome {
     /// Panics with a report, and writes the two histograms as PNG images, if the test fails at
     /// significance `alpha` (already corrected for the number of tests) or if any sample landed
-    /// where the density is zero.
+    /// where the density is zero. Prints the outcome either way (seen with `--nocapture`), so
+    /// that p-values can be collected over seeds.
     pub fn assert_passes(&self, alpha: f64, name: &str) {
+        eprintln!(
+            "chi2 `{name}`: p = {:.4e} (chi2 = {:.1}, dof = {}), {} zero-density samples, seed {}",
+            self.p_value,
+            self.chi2,
+            self.degrees_of_freedom,
+            self.zero_density_samples,
+            test_seed()
+        );
         let failed = self.p_value < alpha
             || self.zero_density_samples > 0
             || self.integral.is_nan()
@@ -288,8 +356,9 @@ impl Chi2Outcome {
         }
         let images = self.write_images(name);
         panic!(
-            "chi-square test `{name}` failed: p = {:.3e} < {alpha:.3e} (chi2 = {:.1}, dof = {}), {} samples \
+            "chi-square test `{name}` failed (seed {}): p = {:.3e} < {alpha:.3e} (chi2 = {:.1}, dof = {}), {} samples \
              where the pdf is zero, pdf integral over the bins {:.5} ± {:.1e}; histograms: {images}",
+            test_seed(),
             self.p_value,
             self.chi2,
             self.degrees_of_freedom,
@@ -299,13 +368,30 @@ impl Chi2Outcome {
         );
     }
 
-    /// Writes observed and expected histograms and their difference side by side (φ across, θ
-    /// down) to the directory
-    /// `LUMIS_CHI2_DIR` or the system's temporary directory; returns the path or the problem.
+    /// Writes the histograms (see [`Chi2Outcome::write_images_to`]) into the directory named by
+    /// `LUMIS_CHI2_DIR`, or else into a new temporary directory of their own, which is kept for
+    /// inspection; returns a description of where, or why not.
     pub fn write_images(&self, name: &str) -> String {
-        let dir = std::env::var_os("LUMIS_CHI2_DIR")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| std::env::temp_dir().join("lumis-chi2"));
+        let dir = match std::env::var_os("LUMIS_CHI2_DIR") {
+            Some(dir) => Ok(PathBuf::from(dir)),
+            None => tempfile::Builder::new()
+                .prefix("lumis-chi2-")
+                .tempdir()
+                .map(|dir| dir.keep())
+                .map_err(|e| e.to_string()),
+        };
+        match dir.and_then(|dir| self.write_images_to(&dir, name)) {
+            Ok(path) => format!(
+                "{} (observed, expected, difference in standard deviations)",
+                path.display()
+            ),
+            Err(e) => format!("not written: {e}"),
+        }
+    }
+
+    /// Writes observed and expected histograms and their difference side by side (φ across, θ
+    /// down) as `<name>.png` in `dir` (created if needed); returns the file's path.
+    pub fn write_images_to(&self, dir: &Path, name: &str) -> Result<PathBuf, String> {
         let bins = self.theta_bins * self.phi_bins;
         let max = self.observed[..bins]
             .iter()
@@ -346,16 +432,12 @@ impl Chi2Outcome {
             .map(|c| if c.is_alphanumeric() { c } else { '_' })
             .collect();
         let path = dir.join(format!("{file}.png"));
-        match std::fs::create_dir_all(&dir)
-            .map_err(|e| e.to_string())
-            .and_then(|_| img.save(&path).map_err(|e| e.to_string()))
-        {
-            Ok(()) => format!(
-                "{} (observed, expected, difference in standard deviations)",
-                path.display()
-            ),
-            Err(e) => format!("not written: {e}"),
-        }
+        crate::image_io::write_atomically(&path, |file| {
+            img.write_to(file, image::ImageFormat::Png)
+                .map_err(|e| e.to_string())
+        })
+        .map_err(|e| e.to_string())?;
+        Ok(path)
     }
 }
 
@@ -374,7 +456,7 @@ mod tests {
             |s| Some(square_to_cosine_hemisphere(s.next_2d())),
             |d| cosine_hemisphere_pdf(d.z) as f64,
         );
-        assert!(good.p_value > 0.01, "p = {}", good.p_value);
+        good.assert_passes(FAMILY_FALSE_ALARM, "cosine hemisphere");
         assert!((good.integral - 1.0).abs() < 1e-3);
         // Uniform-hemisphere density claimed for a cosine sampler.
         let bad = test.run(
@@ -387,8 +469,6 @@ mod tests {
     #[test]
     fn failures_write_the_histograms_as_an_image() {
         let dir = tempfile::tempdir().unwrap();
-        // SAFETY: tests in this module do not read the variable concurrently.
-        unsafe { std::env::set_var("LUMIS_CHI2_DIR", dir.path()) };
         let test = Chi2Test {
             samples: 10_000,
             ..Default::default()
@@ -397,12 +477,42 @@ mod tests {
             |s| Some(square_to_cosine_hemisphere(s.next_2d())),
             |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 },
         );
-        let report = std::panic::catch_unwind(|| o.assert_passes(0.01, "cosine vs uniform"))
+        let path = o.write_images_to(dir.path(), "cosine vs uniform").unwrap();
+        assert_eq!(path, dir.path().join("cosine_vs_uniform.png"));
+        let image = image::open(&path).unwrap();
+        assert_eq!((image.width(), image.height()), (3 * (64 * 4 + 4), 32 * 4));
+    }
+
+    /// A failing test names a directory of its own, under the system's temporary directory,
+    /// that holds its histograms.
+    #[test]
+    fn failures_report_a_fresh_directory_with_the_histograms() {
+        let test = Chi2Test {
+            samples: 10_000,
+            ..Default::default()
+        };
+        let o = test.run(
+            |s| Some(square_to_cosine_hemisphere(s.next_2d())),
+            |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 },
+        );
+        let report = std::panic::catch_unwind(|| o.assert_passes(0.01, "fresh directory"))
             .expect_err("a wrong density fails");
         let message = report.downcast_ref::<String>().unwrap();
-        let image = image::open(dir.path().join("cosine_vs_uniform.png")).unwrap();
-        assert_eq!((image.width(), image.height()), (3 * (64 * 4 + 4), 32 * 4));
-        assert!(message.contains("cosine_vs_uniform.png"), "{message}");
+        let path = message
+            .split_whitespace()
+            .find(|w| w.ends_with("fresh_directory.png"))
+            .map(PathBuf::from)
+            .unwrap_or_else(|| panic!("no image path in: {message}"));
+        let dir = path.parent().unwrap().to_path_buf();
+        let exists = path.is_file();
+        // Removed before asserting, so that the test leaves nothing behind either way.
+        if std::env::var_os("LUMIS_CHI2_DIR").is_none() {
+            std::fs::remove_dir_all(&dir).unwrap();
+            assert!(dir.starts_with(std::env::temp_dir()), "{}", dir.display());
+            let name = dir.file_name().unwrap().to_string_lossy();
+            assert!(name.starts_with("lumis-chi2-"), "{name}");
+        }
+        assert!(exists, "{}", path.display());
     }
 
     #[test]
@@ -441,12 +551,8 @@ mod tests {
             (n + 1.0) / TAU * (n * (-one_minus_cos).ln_1p()).exp()
         };
         let o = test.run(sample, pdf);
-        assert!(
-            o.p_value > 0.01 && (o.integral - 1.0).abs() < 1e-3,
-            "{} {}",
-            o.p_value,
-            o.integral
-        );
+        o.assert_passes(FAMILY_FALSE_ALARM, "Phong lobe n = 1e6");
+        assert!((o.integral - 1.0).abs() < 1e-3, "{}", o.integral);
         // The same lobe claimed 10% wider fails.
         let wider = |d: Vec3| {
             let d = d.as_dvec3();
@@ -455,5 +561,37 @@ mod tests {
             (m + 1.0) / TAU * (m * (-one_minus_cos).ln_1p()).exp()
         };
         assert!(test.run(sample, wider).p_value < 1e-6);
+    }
+
+    #[test]
+    fn limits_match_their_distributions() {
+        // Šidák: K tests at the per-test level keep the family at α exactly when independent.
+        let per_test = sidak(0.01, 30);
+        assert!((1.0 - (1.0 - per_test).powi(30) - 0.01).abs() < 1e-12);
+        assert!(per_test >= 0.01 / 30.0);
+        // Two-sided normal quantiles.
+        assert!((z_limit(0.05) - 1.959_964).abs() < 1e-5);
+        assert!((z_limit(2.0 * 0.001_349_898) - 3.0).abs() < 1e-5);
+        // Binomial(100, 0.5) exceeds 63 with probability 0.0033 and 62 with 0.0060 (exact
+        // tail sums).
+        assert_eq!(binomial_limit(100, 0.5, 0.005), 63);
+        // No event can happen: any event is a failure.
+        assert_eq!(binomial_limit(1_000_000, 0.0, 1e-4), 0);
+        // Poisson-like: mean 1, P(X > 6) = 8.3e-5 ≤ 1e-4 < P(X > 5) = 5.9e-4.
+        assert_eq!(binomial_limit(1_000_000, 1e-6, 1e-4), 6);
+    }
+
+    #[test]
+    fn the_seed_comes_from_the_environment() {
+        // The variable is read, never written, by the tests (they run in parallel threads).
+        let expected = std::env::var(SEED_VARIABLE).map_or(0, |v| v.trim().parse().unwrap());
+        assert_eq!(test_seed(), expected);
+        assert_eq!(Chi2Test::default().seed, expected);
+        // Distinct streams under one seed are distinct.
+        let first = |stream| {
+            let mut s = test_sampler(stream);
+            [s.next_1d(), s.next_1d(), s.next_1d(), s.next_1d()]
+        };
+        assert_ne!(first(1), first(2));
     }
 }

@@ -1,0 +1,137 @@
+//! The `area` emitter on triangles: every direction it samples is one in which a traced ray
+//! finds the light, with the density `pdf_direction` gives that hit, including points drawn on
+//! (or within rounding of) the triangles' edges, where u is 0 or 1/2.
+
+use glam::{Vec2, Vec3};
+use lumis_core::accel::{Geometry, Ray};
+use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, ReferencePoint};
+use lumis_core::params::Params;
+use lumis_core::registry::{self, EmitterPlugin};
+use lumis_core::scene::description::{RotationDescription, TransformDescription};
+use lumis_core::scene::shapes::{self, ShapeGeometry};
+use std::sync::Arc;
+
+/// A two-sided 2 × 2 square light in the plane y = 0 (two triangles sharing a diagonal), and the
+/// geometry rays are traced against.
+fn square_light() -> (Arc<dyn Emitter>, Geometry) {
+    lumis_emitters::link();
+    let m = shapes::transform_matrix(&TransformDescription {
+        rotate: vec![RotationDescription {
+            axis: [1.0, 0.0, 0.0],
+            angle: 90.0,
+        }],
+        ..Default::default()
+    })
+    .unwrap();
+    let shape = ShapeGeometry::Mesh(shapes::rectangle().transformed(&m));
+    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
+    let values = ron::from_str("{\"radiance\": 2, \"two_sided\": true}").unwrap();
+    let mut params = Params::new("area", plugin.params, values).unwrap();
+    let light = (plugin.create)(
+        &mut params,
+        &EmitterContext {
+            shape: Some(&shape),
+        },
+    )
+    .unwrap();
+    (light, Geometry::new(vec![shape]))
+}
+
+/// Reference points: near, far, grazing (as in the chi-square test), and others around.
+const FROM: [Vec3; 5] = [
+    Vec3::new(0.3, 0.4, -0.2),
+    Vec3::new(3.0, 40.0, 5.0),
+    Vec3::new(2.5, 0.01, 0.3),
+    Vec3::new(-7.0, -3.0, 11.0),
+    Vec3::new(0.9, -0.05, 0.99),
+];
+
+/// u values in [0, 1) at and next to the places where the warp puts points on an edge: 0, the
+/// split between the two triangles at 1/2, and the top, each with its f32 neighbours.
+fn edge_values() -> Vec<f32> {
+    let ulp = f32::EPSILON / 2.0; // spacing of f32 just below 1 (and of the sampler's u)
+    let mut v = Vec::new();
+    for k in 0..4 {
+        v.push(k as f32 * 1e-7 * 0.6);
+        v.push(0.5 - k as f32 * ulp);
+        v.push(0.5 + k as f32 * 2.0 * ulp);
+        v.push(1.0 - (k + 1) as f32 * ulp);
+    }
+    v
+}
+
+/// Checks one sample: the ray along it meets the light where the sample says, with its pdf.
+/// Returns whether `sample_direction` gave a sample at all.
+fn check(light: &dyn Emitter, geometry: &Geometry, from: Vec3, u: Vec2) -> bool {
+    let reference = ReferencePoint { position: from };
+    let Some(ls) = light.sample_direction(&reference, u) else {
+        return false;
+    };
+    let hit = geometry
+        .intersect(&Ray {
+            origin: from,
+            direction: ls.wi,
+            t_max: f32::INFINITY,
+        })
+        .unwrap_or_else(|| {
+            panic!("from {from}, u = {u:?}: the ray along the sample {ls:?} misses the light")
+        });
+    let hit = EmitterHit {
+        position: hit.position,
+        normal: hit.geometric_normal,
+        distance: hit.t,
+    };
+    let pdf = light.pdf_direction(&reference, ls.wi, Some(&hit));
+    assert!(
+        (pdf - ls.pdf).abs() <= 1e-4 * ls.pdf,
+        "from {from}, u = {u:?}: pdf through the hit {pdf}, sample's {}",
+        ls.pdf
+    );
+    let p = ls.position.unwrap();
+    assert!(
+        (p - hit.position).length() <= 1e-5 * (1.0 + (p - from).length()),
+        "from {from}, u = {u:?}: sampled point {p}, hit {}",
+        hit.position
+    );
+    true
+}
+
+#[test]
+fn samples_on_the_edges_of_a_square_light_are_reached_by_their_rays() {
+    let (light, geometry) = square_light();
+    let along: Vec<f32> = (0..2048).map(|k| (k as f32 + 0.37) / 2048.0).collect();
+    let mut returned = 0;
+    for from in FROM {
+        for &e in &edge_values() {
+            for &t in &along {
+                for u in [Vec2::new(e, t), Vec2::new(t, e), Vec2::new(e, e)] {
+                    returned += check(light.as_ref(), &geometry, from, u) as usize;
+                }
+            }
+        }
+    }
+    // Only points within rounding of an edge may be refused: nearly all are returned.
+    let tried = FROM.len() * edge_values().len() * along.len() * 3;
+    assert!(returned * 10 > tried * 9, "{returned} of {tried} returned");
+}
+
+/// Away from the edges (u at least 1e-4 from 0, 1/2 and 1) every u gives a sample.
+#[test]
+fn samples_away_from_the_edges_are_all_returned() {
+    let (light, geometry) = square_light();
+    let grid: Vec<f32> = (0..300)
+        .map(|k| 1e-4 + (0.5 - 2e-4) * k as f32 / 299.0)
+        .flat_map(|x| [x, x + 0.5])
+        .collect();
+    for from in FROM {
+        for &x in &grid {
+            for &y in &grid {
+                let u = Vec2::new(x, y);
+                assert!(
+                    check(light.as_ref(), &geometry, from, u),
+                    "from {from}: no sample for u = {u:?}"
+                );
+            }
+        }
+    }
+}
