@@ -225,13 +225,7 @@ impl Chi2Test {
         error[bins] = error[..bins].iter().sum();
 
         let (chi2, degrees_of_freedom) = pooled_chi2(&observed, &expected, &error);
-        let p_value = if degrees_of_freedom == 0 {
-            if chi2 == 0.0 { 1.0 } else { 0.0 }
-        } else {
-            ChiSquared::new(degrees_of_freedom as f64)
-                .map(|d| d.sf(chi2))
-                .unwrap_or(0.0)
-        };
+        let p_value = chi2_p_value(chi2, degrees_of_freedom);
         Chi2Outcome {
             chi2,
             degrees_of_freedom,
@@ -305,6 +299,25 @@ impl Simpson2D {
             (sum + v, err + e)
         })
     }
+}
+
+/// The probability that a χ² variable with `degrees_of_freedom` exceeds `chi2`.
+fn chi2_p_value(chi2: f64, degrees_of_freedom: usize) -> f64 {
+    if degrees_of_freedom == 0 {
+        if chi2 == 0.0 { 1.0 } else { 0.0 }
+    } else {
+        ChiSquared::new(degrees_of_freedom as f64)
+            .map(|d| d.sf(chi2))
+            .unwrap_or(0.0)
+    }
+}
+
+/// The p-value of Pearson's χ² test of a histogram: `observed` counts against `expected` ones
+/// (the same total), bins expecting fewer than 5 pooled as in [`Chi2Test::run`]. For samplers
+/// of other domains than directions (points on a triangle, discrete distributions).
+pub fn histogram_p_value(observed: &[f64], expected: &[f64]) -> f64 {
+    let (chi2, degrees_of_freedom) = pooled_chi2(observed, expected, &vec![0.0; observed.len()]);
+    chi2_p_value(chi2, degrees_of_freedom)
 }
 
 /// χ² over bins, pooling those expecting fewer than 5 samples (including those whose integral
