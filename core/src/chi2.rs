@@ -26,8 +26,9 @@ use std::path::{Path, PathBuf};
 pub const SEED_VARIABLE: &str = "LUMIS_TEST_SEED";
 
 /// The probability that one statistical test function fails although the code is correct: the
-/// family-wise level of its checks. With about ten such functions in the suite, a correct
-/// build fails a given seed with probability about 10⁻³, and ten seeds with about 1 %.
+/// family-wise level of its checks. With about fifteen such functions in the suite, a correct
+/// build fails a given seed with probability about 1.5·10⁻³, and one of ten seeds with about
+/// 1.5 % (docs/testing.md lists them).
 pub const FAMILY_FALSE_ALARM: f64 = 1e-4;
 
 /// The seed of the statistical tests: `LUMIS_TEST_SEED` when set, else 0.
