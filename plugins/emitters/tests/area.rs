@@ -14,6 +14,12 @@ use std::sync::Arc;
 /// A two-sided 2 × 2 square light in the plane y = 0 (two triangles sharing a diagonal), and the
 /// geometry rays are traced against.
 fn square_light() -> (Arc<dyn Emitter>, Geometry) {
+    light_on_square("\"radiance\": 2, \"two_sided\": true")
+}
+
+/// An `area` light with `params` on the 2 × 2 square in the plane y = 0, whose front faces −y
+/// (the rectangle faces +z and is turned by 90° about x).
+fn light_on_square(params: &str) -> (Arc<dyn Emitter>, Geometry) {
     lumis_emitters::link();
     let m = shapes::transform_matrix(&TransformDescription {
         rotate: vec![RotationDescription {
@@ -25,7 +31,7 @@ fn square_light() -> (Arc<dyn Emitter>, Geometry) {
     .unwrap();
     let shape = ShapeGeometry::Mesh(shapes::rectangle().transformed(&m));
     let plugin = registry::find::<EmitterPlugin>("area").unwrap();
-    let values = ron::from_str("{\"radiance\": 2, \"two_sided\": true}").unwrap();
+    let values = ron::from_str(&format!("{{{params}}}")).unwrap();
     let mut params = Params::new("area", plugin.params, values).unwrap();
     let light = (plugin.create)(
         &mut params,
@@ -134,4 +140,103 @@ fn samples_away_from_the_edges_are_all_returned() {
             }
         }
     }
+}
+
+/// A one-sided light emits from its front only: seen from behind, it gives no sample and `eval`
+/// gives nothing; seen from the front, every sample carries its radiance. Also for a one-sided
+/// sphere, whose front is its outside.
+#[test]
+fn one_sided_lights_emit_from_their_front_only() {
+    let (light, geometry) = light_on_square("\"radiance\": 2");
+    let grid: Vec<Vec2> = (0..400)
+        .map(|k| Vec2::new((k % 20) as f32 + 0.5, (k / 20) as f32 + 0.5) / 20.0)
+        .collect();
+    for (from, front) in [
+        (Vec3::new(0.3, -1.5, 0.2), true),
+        (Vec3::new(-2.0, -0.1, 1.0), true),
+        (Vec3::new(0.3, 1.5, 0.2), false),
+        (Vec3::new(4.0, 0.2, -3.0), false),
+    ] {
+        let reference = ReferencePoint { position: from };
+        let returned = grid
+            .iter()
+            .filter(|&&u| check(light.as_ref(), &geometry, from, u))
+            .count();
+        assert_eq!(
+            returned,
+            if front { grid.len() } else { 0 },
+            "from {from}: {returned} samples"
+        );
+        let to_centre = (-from).normalize();
+        let hit = geometry
+            .intersect(&Ray {
+                origin: from,
+                direction: to_centre,
+                t_max: f32::INFINITY,
+            })
+            .unwrap();
+        let hit = EmitterHit {
+            position: hit.position,
+            normal: hit.geometric_normal,
+            distance: hit.t,
+        };
+        let expected = if front { Vec3::splat(2.0) } else { Vec3::ZERO };
+        assert_eq!(light.eval(to_centre, Some(&hit)), expected, "from {from}");
+        let sample = light.sample_direction(&reference, Vec2::splat(0.3));
+        assert_eq!(sample.is_some(), front, "from {from}");
+    }
+    // A one-sided sphere seen from inside shows its back: nothing.
+    let sphere = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
+        center: Vec3::ZERO,
+        radius: 1.0,
+    });
+    lumis_emitters::link();
+    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
+    let mut params = Params::new(
+        "area",
+        plugin.params,
+        ron::from_str("{\"radiance\": 3}").unwrap(),
+    )
+    .unwrap();
+    let light = (plugin.create)(
+        &mut params,
+        &EmitterContext {
+            shape: Some(&sphere),
+        },
+    )
+    .unwrap();
+    let inside = ReferencePoint {
+        position: Vec3::new(0.2, -0.3, 0.1),
+    };
+    assert!(
+        grid.iter()
+            .all(|&u| light.sample_direction(&inside, u).is_none()),
+        "a one-sided sphere lights its inside"
+    );
+}
+
+/// A hit seen exactly edge-on has no solid-angle density (its area density over a zero cosine):
+/// zero, never infinite or NaN.
+#[test]
+fn edge_on_hits_have_zero_density() {
+    let (light, _) = square_light();
+    let reference = ReferencePoint {
+        position: Vec3::new(-3.0, 0.0, 0.5),
+    };
+    for normal in [Vec3::Y, -Vec3::Y] {
+        let hit = EmitterHit {
+            position: Vec3::new(0.0, 0.0, 0.5),
+            normal,
+            distance: 3.0,
+        };
+        assert_eq!(light.pdf_direction(&reference, Vec3::X, Some(&hit)), 0.0);
+    }
+    // And a hit so far that the density overflows is none either.
+    let hit = EmitterHit {
+        position: Vec3::new(0.0, 0.0, 0.5),
+        normal: -Vec3::Y,
+        distance: 1e30,
+    };
+    let wi = Vec3::new(0.0, 1.0, 0.0);
+    assert_eq!(light.pdf_direction(&reference, wi, Some(&hit)), 0.0);
 }
