@@ -553,8 +553,9 @@ mod tests {
         };
         let sample = |s: &mut Sampler| {
             let u = s.next_2d().as_dvec2();
-            // cos θ = u^(1/(n+1)), kept as 1 − cos θ to stay accurate.
-            let one_minus_cos = -(u.x.ln() / (n + 1.0)).exp_m1();
+            // cos θ = ξ^(1/(n+1)) with ξ = 1 − u in (0, 1] (u = 0 would give the horizon, where
+            // the density is zero), kept as 1 − cos θ to stay accurate.
+            let one_minus_cos = -((1.0 - u.x).ln() / (n + 1.0)).exp_m1();
             let sin = (one_minus_cos * (2.0 - one_minus_cos)).sqrt();
             let phi = TAU * u.y;
             Some(DVec3::new(sin * phi.cos(), sin * phi.sin(), 1.0 - one_minus_cos).as_vec3())

@@ -240,3 +240,58 @@ fn edge_on_hits_have_zero_density() {
     let wi = Vec3::new(0.0, 1.0, 0.0);
     assert_eq!(light.pdf_direction(&reference, wi, Some(&hit)), 0.0);
 }
+
+/// Seen from outside, a sphere light's density is uniform over the cone it subtends:
+/// 1 / (2π (1 − cos θmax)), here against the closed form in f64 for cones from a hemisphere down
+/// to 1e-5 sr, on both sides of the switch to the series that keeps tiny cones accurate. The
+/// tolerance is the f32 evaluation's: a few ε, which the direct formula 1 − √(1 − sin²θmax)
+/// (used above sin²θmax = 1e-3) amplifies by its cancellation, 1 / sin²θmax.
+#[test]
+fn sphere_light_density_is_that_of_its_cone() {
+    lumis_emitters::link();
+    let radius = 0.5f32;
+    let sphere = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
+        center: Vec3::new(1.0, 2.0, -1.0),
+        radius,
+    });
+    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
+    let values = ron::from_str("{\"radiance\": 1}").unwrap();
+    let mut params = Params::new("area", plugin.params, values).unwrap();
+    let light = (plugin.create)(
+        &mut params,
+        &EmitterContext {
+            shape: Some(&sphere),
+        },
+    )
+    .unwrap();
+    for sin2_max in [0.9f64, 0.25, 0.01, 2e-3, 9e-4, 5e-4, 1e-5] {
+        let distance = radius as f64 / sin2_max.sqrt();
+        let from =
+            Vec3::new(1.0, 2.0, -1.0) - (distance * glam::DVec3::new(0.48, 0.6, 0.64)).as_vec3();
+        let reference = ReferencePoint { position: from };
+        let to_centre = Vec3::new(1.0, 2.0, -1.0) - from;
+        let d2 = to_centre.as_dvec3().length_squared();
+        let one_minus_cos = {
+            let x = (radius as f64).powi(2) / d2;
+            x / (1.0 + (1.0 - x).sqrt())
+        };
+        let expected = 1.0 / (std::f64::consts::TAU * one_minus_cos);
+        let pdf = light.pdf_direction(&reference, to_centre.normalize(), None) as f64;
+        // Below sin²θmax = 1e-3 the plugin's series has no cancellation.
+        let amplification = if sin2_max < 1e-3 {
+            1.0
+        } else {
+            1.0 + 1.0 / sin2_max
+        };
+        let tolerance = 16.0 * f32::EPSILON as f64 * amplification;
+        assert!(
+            ((pdf - expected) / expected).abs() <= tolerance,
+            "sin²θmax = {sin2_max}: pdf {pdf}, closed form {expected}"
+        );
+        // The sample's density is the same.
+        let sample = light
+            .sample_direction(&reference, Vec2::new(0.3, 0.6))
+            .unwrap();
+        assert!(((sample.pdf as f64 - expected) / expected).abs() <= tolerance);
+    }
+}

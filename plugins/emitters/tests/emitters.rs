@@ -160,16 +160,17 @@ fn chi_square_sampling_matches_pdf() {
         ));
     }
     drop(square);
-    // Sphere light of radius 1: near (cone nearly a hemisphere), far (tiny cone), grazing
-    // directions along the cone's edge are covered by both; and from inside (area sampling).
+    // Sphere light of radius 1/2 (not 1, so that r² and r differ): near (cone nearly a
+    // hemisphere), far (tiny cone), grazing directions along the cone's edge are covered by
+    // both; and from inside (area sampling). Distances in radii.
     for (name, distance) in [
         ("near", 1.05f32),
         ("mid", 3.0),
         ("far", 1000.0),
         ("inside", 0.5),
     ] {
-        let sphere = sphere_light(1.0, distance < 1.0);
-        let from = Vec3::new(0.6, 0.0, 0.8) * distance;
+        let sphere = sphere_light(0.5, distance < 1.0);
+        let from = Vec3::new(0.6, 0.0, 0.8) * (0.5 * distance);
         let sin_max = (1.0 / distance as f64).min(1.0);
         let cap = if distance > 1.0 {
             (1.2 * sin_max.asin()).min(PI).cos()
