@@ -466,8 +466,11 @@ mod tests {
             samples: 200_000,
             ..Default::default()
         };
+        // An edge of the square (u.x or u.y = 0, 1.2e-7 of draws) maps to the horizon, where
+        // the density is zero: the sampler's users (the BSDFs) refuse such directions, and so
+        // does this one.
         let good = test.run(
-            |s| Some(square_to_cosine_hemisphere(s.next_2d())),
+            |s| Some(square_to_cosine_hemisphere(s.next_2d())).filter(|w| w.z > 0.0),
             |d| cosine_hemisphere_pdf(d.z) as f64,
         );
         good.assert_passes(FAMILY_FALSE_ALARM, "cosine hemisphere");
