@@ -242,6 +242,8 @@ fn samples_agree_with_eval_and_pdf() {
     for (name, light) in [
         ("square", square_light()),
         ("sphere", sphere_light(0.5, false)),
+        // Two-sided, so that it is seen from inside, where it is sampled by area.
+        ("two-sided sphere", sphere_light(0.5, true)),
     ] {
         for from in [
             Vec3::new(0.2, 1.5, -0.3),
