@@ -295,3 +295,72 @@ fn sphere_light_density_is_that_of_its_cone() {
         assert!(((sample.pdf as f64 - expected) / expected).abs() <= tolerance);
     }
 }
+
+/// Nothing is sampled where the density is not a positive finite number: from a point in a
+/// square light's plane (every point seen edge-on), or toward a sphere so small and far that its
+/// cone's solid angle underflows.
+#[test]
+fn degenerate_configurations_give_no_sample() {
+    let (light, _) = square_light();
+    for from in [Vec3::new(3.0, 0.0, 0.2), Vec3::new(-0.5, 0.0, 4.0)] {
+        let reference = ReferencePoint { position: from };
+        for k in 0..100 {
+            let u = Vec2::new((k % 10) as f32 + 0.5, (k / 10) as f32 + 0.5) / 10.0;
+            assert!(
+                light.sample_direction(&reference, u).is_none(),
+                "from {from} in the light's plane, u = {u:?}"
+            );
+        }
+    }
+    lumis_emitters::link();
+    let speck = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
+        center: Vec3::ZERO,
+        radius: 1e-20,
+    });
+    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
+    let mut params = Params::new(
+        "area",
+        plugin.params,
+        ron::from_str("{\"radiance\": 1}").unwrap(),
+    )
+    .unwrap();
+    let light = (plugin.create)(
+        &mut params,
+        &EmitterContext {
+            shape: Some(&speck),
+        },
+    )
+    .unwrap();
+    let reference = ReferencePoint {
+        position: Vec3::new(0.0, 0.0, 1e3),
+    };
+    assert!(
+        light
+            .sample_direction(&reference, Vec2::splat(0.4))
+            .is_none()
+    );
+}
+
+/// `scale` multiplies the radiance that samples and `eval` carry.
+#[test]
+fn scale_multiplies_the_radiance() {
+    let (light, geometry) = light_on_square("\"radiance\": (1, 2, 3), \"scale\": 2.5");
+    let from = Vec3::new(0.2, -2.0, 0.1);
+    let sample = light
+        .sample_direction(&ReferencePoint { position: from }, Vec2::splat(0.3))
+        .unwrap();
+    assert_eq!(sample.radiance, Vec3::new(2.5, 5.0, 7.5));
+    let hit = geometry
+        .intersect(&Ray {
+            origin: from,
+            direction: sample.wi,
+            t_max: f32::INFINITY,
+        })
+        .unwrap();
+    let hit = EmitterHit {
+        position: hit.position,
+        normal: hit.geometric_normal,
+        distance: hit.t,
+    };
+    assert_eq!(light.eval(sample.wi, Some(&hit)), Vec3::new(2.5, 5.0, 7.5));
+}
