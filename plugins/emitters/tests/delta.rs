@@ -55,3 +55,37 @@ fn delta_lights_are_flagged_and_reached_by_no_ray() {
     assert!(!emitter("area", "\"radiance\": 1", Some(&square)).is_delta());
     assert!(!emitter("envmap", "\"file\": \"scenes/envmaps/studio.exr\"", None).is_delta());
 }
+
+/// `scale` multiplies a delta light's intensity or irradiance; a point light out of f32 range
+/// (its squared distance overflows) or at the shading point gives no sample.
+#[test]
+fn delta_light_samples_carry_their_scaled_power() {
+    let reference = ReferencePoint {
+        position: Vec3::new(1.0, 0.0, 4.0),
+    };
+    let point = emitter(
+        "point",
+        "\"position\": (1, 3, 0), \"intensity\": (4, 8, 12), \"scale\": 0.5",
+        None,
+    );
+    let sample = point.sample_direction(&reference, Vec2::ZERO).unwrap();
+    assert_eq!(sample.radiance, Vec3::new(2.0, 4.0, 6.0) / 25.0);
+    assert_eq!(sample.pdf, 1.0);
+    let sun = emitter(
+        "directional",
+        "\"direction\": (0, -1, 0), \"irradiance\": 5, \"scale\": 3",
+        None,
+    );
+    let sample = sun.sample_direction(&reference, Vec2::ZERO).unwrap();
+    assert_eq!((sample.radiance, sample.wi), (Vec3::splat(15.0), Vec3::Y));
+    let far = emitter(
+        "point",
+        "\"position\": (3e19, 0, 0), \"intensity\": 1",
+        None,
+    );
+    assert!(far.sample_direction(&reference, Vec2::ZERO).is_none());
+    let here = ReferencePoint {
+        position: Vec3::new(1.0, 3.0, 0.0),
+    };
+    assert!(point.sample_direction(&here, Vec2::ZERO).is_none());
+}
