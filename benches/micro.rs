@@ -7,9 +7,13 @@ use glam::{Vec2, Vec3};
 use lumis::accel::{Geometry, Ray};
 use lumis::bsdf::Bsdf;
 use lumis::emitter::{Emitter, ReferencePoint};
-use lumis::integrators::estimator::{
-    Heuristic, SampleSplit, ShadingPoint, camera_sample, estimate_light,
-};
+use lumis::integrator::CameraSample;
+use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
+use lumis::integrators::alpha::SecondOrderMoments;
+use lumis::integrators::balance::Balance;
+use lumis::integrators::estimator::ShadingPoint;
+use lumis::integrators::phase::{Observer, PhaseRole};
+use lumis::integrators::weighting::PerSample;
 use lumis::sampler::Sampler;
 use lumis::scene::shapes::{Mesh, ShapeGeometry};
 use std::hint::black_box;
@@ -233,15 +237,9 @@ fn bsdfs(c: &mut Criterion) {
 }
 
 fn envmap(c: &mut Criterion) {
+    use lumis::emitters::envmap::{EnvironmentMap, Interpolation, MapSettings};
     let path = repo("scenes/envmaps/studio.exr");
     let image = lumis::image_io::read_exr_rgb(&path).expect("studio.exr reads");
-    let map = lumis::emitters::envmap::EnvironmentMap::new(
-        image.width,
-        image.height,
-        image.pixels,
-        1.0,
-        0.0,
-    );
     let reference = ReferencePoint {
         position: Vec3::ZERO,
     };
@@ -251,68 +249,93 @@ fn envmap(c: &mut Criterion) {
         .iter()
         .map(|&u| lumis::math::warp::square_to_cosine_hemisphere(u).normalize())
         .collect();
-    let mut group = c.benchmark_group("envmap_studio_1024x512");
-    group.throughput(Throughput::Elements(BATCH as u64));
-    group.bench_function("sample_direction", |b| {
-        b.iter(|| {
-            for &u in &us {
-                black_box(map.sample_direction(&reference, u));
-            }
-        })
-    });
-    group.bench_function("pdf_direction", |b| {
-        b.iter(|| {
-            for &d in &directions {
-                black_box(map.pdf_direction(&reference, d, None));
-            }
-        })
-    });
-    group.bench_function("eval", |b| {
-        b.iter(|| {
-            for &d in &directions {
-                black_box(map.eval(d, None));
-            }
-        })
-    });
-    group.finish();
+    for (name, interpolation) in [
+        ("envmap_studio_1024x512", Interpolation::Nearest),
+        ("envmap_studio_1024x512_bilinear", Interpolation::Bilinear),
+    ] {
+        let settings = MapSettings {
+            interpolation,
+            ..MapSettings::default()
+        };
+        let map = EnvironmentMap::with_settings(
+            image.width,
+            image.height,
+            image.pixels.clone(),
+            &settings,
+        )
+        .expect("studio.exr makes a map");
+        let mut group = c.benchmark_group(name);
+        group.throughput(Throughput::Elements(BATCH as u64));
+        group.bench_function("sample_direction", |b| {
+            b.iter(|| {
+                for &u in &us {
+                    black_box(map.sample_direction(&reference, u));
+                }
+            })
+        });
+        group.bench_function("pdf_direction", |b| {
+            b.iter(|| {
+                for &d in &directions {
+                    black_box(map.pdf_direction(&reference, d, None));
+                }
+            })
+        });
+        group.bench_function("eval", |b| {
+            b.iter(|| {
+                for &d in &directions {
+                    black_box(map.eval(d, None));
+                }
+            })
+        });
+        group.finish();
+    }
 }
 
-/// The α statistics' cost per sample: the same balance estimate at a shading point of the Veach
-/// scene (a glossy plate, four sphere lights) with and without them.
+/// The α statistics' cost per sample: the same balance-weighted phase at a shading point of the
+/// Veach scene (a glossy plate, four sphere lights) with and without the observer that
+/// accumulates Î₁ and Î₂.
 fn alpha_estimator(c: &mut Criterion) {
     lumis::link_plugins();
     let loaded =
         lumis::scene::load_scene(&repo("scenes/veach.ron"), &[]).unwrap_or_else(|e| panic!("{e}"));
     let scene = &loaded.scene;
     // A pixel on the second plate, lit by every light.
-    let (_, ray) = camera_sample(scene, glam::UVec2::new(160, 150), 0);
+    let pixel = glam::UVec2::new(160, 150);
+    let ray = CameraSample::new(scene, pixel, 0).ray;
     let hit = scene.intersect(&ray).expect("the camera sees a plate");
     let sp = ShadingPoint::new(scene, hit, -ray.direction);
     let split = SampleSplit::new(0.5, 64);
+    let balance = PerSample(Balance);
+    let mut buffers = PhaseBuffers::default();
     let mut group = c.benchmark_group("alpha_estimator");
     group.throughput(Throughput::Elements(
         (split.total() as usize * scene.emitters.len()) as u64,
     ));
-    for (name, alpha_terms) in [("balance", false), ("balance_with_alpha_terms", true)] {
+    let mut run = |name: &str, observer: &mut dyn Observer| {
         group.bench_function(name, |b| {
             let mut index = 0;
             b.iter(|| {
                 index += 1;
                 let mut sampler = Sampler::new(0, 0, index);
                 for light in 0..scene.emitters.len() {
-                    black_box(estimate_light(
+                    let mut sampling = LightSampling::new(
                         scene,
                         &sp,
                         light,
-                        split,
-                        Heuristic::Balance,
-                        alpha_terms,
+                        pixel,
+                        64,
                         &mut sampler,
-                    ));
+                        &mut buffers,
+                    );
+                    black_box(sampling.phase(split, PhaseRole::ESTIMATE, &balance, observer));
                 }
             })
         });
-    }
+    };
+    run("balance", &mut ());
+    let mut moments = SecondOrderMoments::default();
+    run("balance_with_alpha_terms", &mut moments);
+    black_box(moments);
     group.finish();
 }
 

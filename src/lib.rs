@@ -9,6 +9,7 @@ pub use lumis_core::*;
 pub use lumis_emitters as emitters;
 pub use lumis_integrators as integrators;
 
+pub mod import;
 pub mod study;
 
 /// Makes sure every built-in plugin crate is linked into the final program: a crate none of
@@ -45,6 +46,25 @@ pub mod fuzzing {
     /// Imports a glTF or GLB file from its bytes.
     pub fn gltf(data: &[u8]) -> bool {
         crate::scene::gltf::load_bytes(data, Path::new("/nonexistent"), None).is_ok()
+    }
+
+    /// Imports a Wavefront OBJ file from its bytes.
+    pub fn obj(data: &[u8]) -> bool {
+        crate::scene::obj::parse(data, None).is_ok()
+    }
+
+    /// Imports a PLY file from its bytes.
+    pub fn ply(data: &[u8]) -> bool {
+        crate::scene::ply::parse(data).is_ok()
+    }
+
+    /// Converts a Mitsuba 3 XML scene from its bytes (accepted: converted without problems).
+    pub fn mitsuba_xml(data: &[u8]) -> bool {
+        let Ok(text) = std::str::from_utf8(data) else {
+            return false;
+        };
+        let dir = Path::new("/nonexistent");
+        crate::import::convert(text, dir, dir, &[]).is_ok_and(|c| c.problems.is_empty())
     }
 
     /// Decodes an EXR image from its bytes.

@@ -37,6 +37,21 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Convert a Mitsuba 3 XML scene to a lumis RON scene, naming (with its line) every element
+    /// it cannot convert; nothing is written unless all of it converts (or --partial).
+    Import {
+        /// The Mitsuba 3 scene (XML).
+        scene: PathBuf,
+        /// The RON scene to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Override a <default> parameter, as `mitsuba -D name=value` (repeatable).
+        #[arg(short = 'D', long = "define", value_name = "NAME=VALUE")]
+        defines: Vec<String>,
+        /// Write the scene without the elements that cannot be converted (they are listed).
+        #[arg(long)]
+        partial: bool,
+    },
     /// List the built-in plugins with their parameters.
     Plugins {
         /// Print the reference as Markdown (docs/plugins.md is generated this way).
@@ -131,6 +146,12 @@ fn main() {
         Command::Render(args) => render(args),
         Command::Study(args) => study(args),
         Command::Merl { bsdf, output } => merl(&bsdf, &output),
+        Command::Import {
+            scene,
+            output,
+            defines,
+            partial,
+        } => lumis::import::run(&scene, &output, &defines, partial),
         Command::Plugins { markdown } => {
             print!(
                 "{}",
@@ -286,7 +307,8 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         bar
     };
-    // Ctrl-C stops the render at the next tile; what is finished is written, marked partial.
+    // Ctrl-C stops the render at the next camera sample; the finished pixels are written, marked
+    // partial.
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
@@ -309,6 +331,10 @@ fn render(args: RenderArgs) -> Result<()> {
         ("seed".into(), loaded.scene.seed.to_string()),
         ("partial".into(), stats.partial().to_string()),
         (
+            "pixels".into(),
+            format!("{} of {}", stats.pixels_done, stats.pixels_total),
+        ),
+        (
             "tiles".into(),
             format!("{} of {}", stats.tiles_done, stats.tiles_total),
         ),
@@ -330,9 +356,9 @@ fn render(args: RenderArgs) -> Result<()> {
 
     if stats.partial() {
         eprintln!(
-            "interrupted: wrote a partial image ({} of {} tiles) to {}",
-            stats.tiles_done,
-            stats.tiles_total,
+            "interrupted: wrote a partial image ({} of {} pixels) to {}",
+            stats.pixels_done,
+            stats.pixels_total,
             exr_path.display()
         );
         std::process::exit(130);

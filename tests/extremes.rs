@@ -1,12 +1,11 @@
-//! The extremes suite: scenes at the edges users push a renderer to. For each, every integrator
-//! with every AOV: no NaN or Inf anywhere, α inside its clamp, and where an analytic answer
-//! exists, the mean within 3σ of it (σ from the spread of independent pixel estimates).
+//! The extremes suite: scenes at the edges users push a renderer to. For each, every registered
+//! integrator with every AOV: no NaN or Inf anywhere, α inside its clamp, and where an analytic
+//! answer exists, the mean within 3σ of it (σ from the spread of independent pixel estimates).
 
 mod common;
 use common::scene_file;
+use lumis::integrators::{alpha, aovs, balance, bsdf, light};
 use std::path::Path;
-
-const INTEGRATORS: [&str; 6] = ["bsdf", "light", "balance", "power", "max", "alpha"];
 
 /// A floor of the given BSDF seen almost straight down by a narrow camera, so that every pixel
 /// estimates (nearly) the same point: the origin.
@@ -33,24 +32,21 @@ const TOP_CAMERA: &str = "(position: (0.3, 1, -1), target: (0, 0, 0), fov: 0.01)
 /// pixel mean and standard error (luminance) of each integrator.
 fn render_all(path: &Path, clamp: Option<(f32, f32)>) -> Vec<(&'static str, f64, f64)> {
     let mut results = Vec::new();
-    for integrator in INTEGRATORS {
+    let every_aov = format!("integrator.aovs={:?}", aovs::NAMES);
+    for integrator in common::integrators() {
         let set = format!("integrator.type={integrator}");
-        let mut overrides = vec![
-            set.as_str(),
-            "integrator.aovs=[\"alpha\", \"sampling_variance\", \"samples\"]",
-        ];
-        let clamp_set = clamp.map(|(lo, hi)| format!("integrator.clamp=({lo}, {hi})"));
-        if let Some(c) = clamp_set.as_ref().filter(|_| integrator == "alpha") {
+        let mut overrides = vec![set.as_str(), every_aov.as_str()];
+        let clamp_set = clamp.map(|(lo, hi)| format!("integrator.{}=({lo}, {hi})", alpha::CLAMP));
+        if let Some(c) = clamp_set.as_ref().filter(|_| integrator == alpha::NAME) {
             overrides.push(c);
         }
         let film = common::render(path, &overrides, 2);
         let name = format!("{} with {integrator}", path.display());
         common::assert_finite_outputs(&film, &name);
-        if integrator == "alpha" {
+        if integrator == alpha::NAME {
             let (lo, hi) = clamp.unwrap_or((0.025, 0.975));
-            let alpha = film.aovs.iter().position(|a| a.name == "alpha").unwrap();
-            for c in 0..film.aovs[alpha].channels.len() {
-                for a in film.aov_channel(alpha, c) {
+            for channel in film.aov(aovs::ALPHA).unwrap().channels() {
+                for a in channel {
                     assert!(
                         (lo..=hi).contains(&a) || a == 0.5,
                         "{name}: α {a} outside [{lo}, {hi}]"
@@ -108,7 +104,7 @@ fn tiny_and_huge_lights_and_extreme_radiance() {
         let expected = 0.5 * l * (r / d) * (r / d);
         // BSDF sampling essentially never finds a 1e-4 light: its estimate is right on average
         // but its 3σ from 128 samples per pixel means nothing; it is checked for finiteness only.
-        let skip: &[&str] = if r < 1e-3 { &["bsdf"] } else { &[] };
+        let skip: &[&str] = if r < 1e-3 { &[bsdf::NAME] } else { &[] };
         assert_near(
             &results,
             expected,
@@ -130,11 +126,15 @@ fn roughness_extremes_and_mirror_under_an_area_light() {
         let (_dir, path) = scene_file("rough.ron", &text);
         let results = render_all(&path, None);
         // The camera sees the mirror direction of the light's centre: all integrators agree.
-        let (_, reference, se_ref) = results.iter().find(|r| r.0 == "balance").copied().unwrap();
+        let (_, reference, se_ref) = results
+            .iter()
+            .find(|r| r.0 == balance::NAME)
+            .copied()
+            .unwrap();
         for (integrator, mean, se) in &results {
             // Light sampling alone essentially never lands in a 1e-4 lobe: right on average, but
             // its 3σ means nothing at any affordable sample count; checked for finiteness only.
-            if *integrator == "light" && bsdf.contains("0.0001") {
+            if *integrator == light::NAME && bsdf.contains("0.0001") {
                 continue;
             }
             let tolerance = 3.0 * (se * se + se_ref * se_ref).sqrt() + 1e-4 * reference;
@@ -242,7 +242,11 @@ fn alpha_at_both_clamp_bounds() {
             let (_dir, path) = scene_file("clamp.ron", &text);
             let results = render_all(&path, Some(clamp));
             if bsdf == DIFFUSE {
-                let (_, mean, se) = results.iter().find(|r| r.0 == "alpha").copied().unwrap();
+                let (_, mean, se) = results
+                    .iter()
+                    .find(|r| r.0 == alpha::NAME)
+                    .copied()
+                    .unwrap();
                 let expected = 0.5 * 100.0 * 0.01;
                 assert!(
                     (mean - expected).abs() <= 3.0 * se + 1e-4 * expected,

@@ -212,33 +212,34 @@ fn gltf_meshes_load_with_node_transforms_and_names() {
     assert!(film.color.iter().all(|c| c.is_finite()));
 }
 
+/// Every plugin file (a file of a plugin crate that submits a registration) is registered
+/// under its file's name: the facade links every plugin crate, and the linker kept every
+/// registration. The list comes from the source tree, so a new plugin is checked as soon as its
+/// file exists.
 #[test]
-fn every_builtin_plugin_is_registered() {
+fn every_plugin_file_is_registered() {
     use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, builtin};
     lumis::link_plugins();
-    let names = |v: Vec<&'static str>| v.join(",");
-    assert_eq!(
-        names(builtin::<BsdfPlugin>().iter().map(|p| p.name()).collect()),
-        "diffuse,glossy,measured,mirror"
-    );
-    assert_eq!(
-        names(
-            builtin::<EmitterPlugin>()
-                .iter()
-                .map(|p| p.name())
-                .collect()
-        ),
-        "area,directional,envmap,point"
-    );
-    assert_eq!(
-        names(
-            builtin::<IntegratorPlugin>()
-                .iter()
-                .map(|p| p.name())
-                .collect()
-        ),
-        "alpha,balance,bsdf,light,max,power"
-    );
+    fn check<P: PluginInfo + lumis::inventory::Collect>(dir: &str) {
+        let mut files: Vec<String> = std::fs::read_dir(repo_path(&format!("plugins/{dir}/src")))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|path| {
+                std::fs::read_to_string(path).is_ok_and(|t| t.contains("inventory::submit!"))
+            })
+            .map(|path| path.file_stem().unwrap().to_string_lossy().into_owned())
+            .collect();
+        files.sort();
+        let registered: Vec<&str> = builtin::<P>().iter().map(|p| p.name()).collect();
+        assert!(files.len() >= 4, "{dir}: found only {files:?}");
+        assert_eq!(
+            registered, files,
+            "{dir}: registered plugins vs plugin files"
+        );
+    }
+    check::<BsdfPlugin>("bsdfs");
+    check::<EmitterPlugin>("emitters");
+    check::<IntegratorPlugin>("integrators");
 }
 
 #[test]
@@ -361,7 +362,7 @@ fn gltf_nodes_are_transformed_and_selectable_by_name() {
 }
 
 /// Every bundled scene (`scenes/` and the paper's, `scenes/paper/`) renders (small, 1 spp) with
-/// every integrator and every AOV without a NaN, an Inf or a negative value.
+/// every registered integrator and every AOV without a NaN, an Inf or a negative value.
 #[test]
 fn every_bundled_scene_renders_finite_values_with_every_integrator() {
     let mut count = 0;
@@ -375,7 +376,8 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
         if std::fs::read_to_string(&path).unwrap().contains("plugins:") {
             example_library();
         }
-        for integrator in ["bsdf", "light", "balance", "power", "max", "alpha"] {
+        let every_aov = format!("integrator.aovs={:?}", lumis::integrators::aovs::NAMES);
+        for integrator in common::integrators() {
             let set = format!("integrator.type={integrator}");
             let film = render_film(
                 &path,
@@ -385,7 +387,7 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
                     "sampler.spp=1",
                     &set,
                     "integrator.samples=4",
-                    "integrator.aovs=[\"alpha\", \"sampling_variance\", \"samples\"]",
+                    &every_aov,
                 ],
                 2,
             );
@@ -582,7 +584,7 @@ fn directional_light_is_blocked_by_an_occluder() {
     );
 }
 
-/// Ctrl-C (SIGINT) during a render writes the finished tiles as a valid EXR and PNG marked
+/// Ctrl-C (SIGINT) during a render writes the finished pixels as a valid EXR and PNG marked
 /// partial, and exits with status 130.
 #[test]
 fn interrupted_render_writes_a_partial_image_and_fails() {
@@ -626,16 +628,20 @@ fn interrupted_render_writes_a_partial_image_and_fails() {
     };
     let text = text.to_string();
     assert!(text.contains("partial=true\n"), "{text}");
-    // "tiles=K of N": some but not all tiles were finished, and they are in the image.
-    let tiles = text.lines().find_map(|l| l.strip_prefix("tiles=")).unwrap();
-    let (done, total) = tiles.split_once(" of ").unwrap();
-    let (done, total): (u32, u32) = (done.parse().unwrap(), total.parse().unwrap());
-    assert!(done > 0 && done < total, "{tiles}");
+    // "pixels=K of N": some but not all pixels were finished, and they are in the image.
+    let pixels = text
+        .lines()
+        .find_map(|l| l.strip_prefix("pixels="))
+        .unwrap();
+    let (done, total) = pixels.split_once(" of ").unwrap();
+    let (done, total): (u64, u64) = (done.parse().unwrap(), total.parse().unwrap());
+    assert!(done > 0 && done < total, "{pixels}");
+    assert!(text.contains("tiles="), "{text}");
     let channels = lumis::image_io::read_exr_channels(&dir.path().join("cut.exr")).unwrap();
     let red = &channels.iter().find(|c| c.0 == "R").unwrap().1;
     assert!(
         red.iter().any(|v| *v > 0.0),
-        "the finished tiles are missing"
+        "the finished pixels are missing"
     );
     assert!(image::open(dir.path().join("cut.png")).is_ok());
     assert!(
@@ -645,4 +651,106 @@ fn interrupted_render_writes_a_partial_image_and_fails() {
             .to_string_lossy()
             .ends_with(".tmp"))
     );
+}
+
+/// A test integrator: each camera sample returns its index as colour and adds 1 and its index
+/// to the pixel's two sums; its AOV `count` resolves to the number of samples summed. It can
+/// also raise `cancel` once it has shaded `cancel_after` camera samples.
+struct Counting {
+    shaded: std::sync::atomic::AtomicU64,
+    cancel_after: u64,
+    cancel: std::sync::atomic::AtomicBool,
+}
+
+impl lumis::integrator::Integrator for Counting {
+    fn aovs(&self, _scene: &lumis::scene::Scene) -> Vec<lumis::output::Aov> {
+        vec![lumis::output::Aov {
+            name: "count".into(),
+            channels: vec!["sums".into(), "samples".into()],
+            preview: false,
+        }]
+    }
+
+    fn pixel_sums(&self, _scene: &lumis::scene::Scene) -> usize {
+        2
+    }
+
+    fn shade(
+        &self,
+        scene: &lumis::scene::Scene,
+        sample: &mut lumis::integrator::CameraSample,
+        sums: &mut [f64],
+    ) -> lumis::math::Rgb {
+        use std::sync::atomic::Ordering;
+        let expected = lumis::integrator::CameraSample::new(scene, sample.pixel, sample.index);
+        assert_eq!(sample.ray.direction, expected.ray.direction);
+        if self.shaded.fetch_add(1, Ordering::Relaxed) + 1 == self.cancel_after {
+            self.cancel.store(true, Ordering::Relaxed);
+        }
+        sums[0] += 1.0;
+        sums[1] += sample.index as f64;
+        lumis::math::Rgb::splat(sample.index as f32)
+    }
+
+    fn resolve(&self, _scene: &lumis::scene::Scene, sums: &[f64], samples: u32, aovs: &mut [f32]) {
+        aovs[0] = sums[0] as f32;
+        aovs[1] = samples as f32;
+    }
+}
+
+fn counting(cancel_after: u64) -> Counting {
+    Counting {
+        shaded: Default::default(),
+        cancel_after,
+        cancel: Default::default(),
+    }
+}
+
+/// Core runs every camera sample of every pixel once, sums colours and the integrator's sums
+/// per pixel, and resolves each pixel once from its sums.
+#[test]
+fn camera_samples_are_summed_per_pixel_and_resolved() {
+    let (_dir, path) = scene_file("scene.ron", SMALL_SCENE);
+    let loaded = load(&path, &["sampler.spp=5"]).unwrap();
+    let integrator = counting(0);
+    let (film, stats) =
+        lumis::render::render(&loaded.scene, &integrator, 2, &|_| {}).expect("render");
+    assert_eq!(stats.pixels_done, 256);
+    assert_eq!(stats.camera_samples, 256 * 5);
+    assert!(!stats.partial());
+    let layer = film.aov("count").expect("the count layer");
+    assert_eq!(layer.channel("sums").unwrap(), vec![5.0; 256]);
+    assert_eq!(layer.channel("samples").unwrap(), vec![5.0; 256]);
+    // Mean of the indices 0 … 4.
+    assert!(film.color.iter().all(|c| *c == glam::Vec3::splat(2.0)));
+    assert!(film.aov("absent").is_none() && layer.channel("absent").is_none());
+}
+
+/// Cancelling stops before the next camera sample: with one thread and 1000 samples a pixel, a
+/// cancel raised by the 2500th sample leaves exactly two finished pixels, kept, and the third,
+/// cut short, black; the statistics say so.
+#[test]
+fn cancelling_stops_at_the_next_camera_sample_and_keeps_finished_pixels() {
+    use std::sync::atomic::Ordering;
+    let (_dir, path) = scene_file("scene.ron", SMALL_SCENE);
+    let loaded = load(&path, &["sampler.spp=1000"]).unwrap();
+    let integrator = counting(2500);
+    let (film, stats) = lumis::render::render_cancellable(
+        &loaded.scene,
+        &integrator,
+        1,
+        &|_| {},
+        &integrator.cancel,
+    )
+    .expect("render");
+    assert_eq!(integrator.shaded.load(Ordering::Relaxed), 2500);
+    assert_eq!((stats.pixels_done, stats.pixels_total), (2, 256));
+    assert_eq!((stats.tiles_done, stats.tiles_total), (0, 1));
+    assert_eq!(stats.camera_samples, 2000);
+    assert!(stats.partial());
+    let mean_index = glam::Vec3::splat(999.0 / 2.0);
+    assert_eq!(film.color[..2], [mean_index; 2]);
+    assert!(film.color[2..].iter().all(|c| *c == glam::Vec3::ZERO));
+    let counts = film.aov("count").unwrap().channel("samples").unwrap();
+    assert_eq!(counts[..3], [1000.0, 1000.0, 0.0]);
 }

@@ -5,11 +5,12 @@
 //! `LUMIS_PLUGIN_DECLARATION`, holding the plugin API version and the rustc version the library
 //! was built with. Rust has no stable ABI, so the loader refuses a library unless both match
 //! this program's exactly, before it touches anything else in the declaration. Loaded libraries
-//! are never unloaded (their code backs plugin objects for the life of the process).
+//! are never unloaded (their code backs plugin objects for the life of the process). Their
+//! plugins are registered with [`crate::registry::register_bsdfs`].
 
 use crate::registry::BsdfPlugin;
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, RwLock};
+use std::sync::Mutex;
 
 /// Version of the plugin interface (the traits, `BsdfPlugin`, `Params`); bumped on any change.
 pub const API_VERSION: u32 = 1;
@@ -51,14 +52,6 @@ macro_rules! declare_plugin_library {
 
 /// Libraries loaded so far, by canonical path; kept for the life of the process.
 static LIBRARIES: Mutex<Vec<(PathBuf, libloading::Library)>> = Mutex::new(Vec::new());
-/// BSDF plugins registered by libraries.
-static BSDFS: RwLock<Vec<&'static BsdfPlugin>> = RwLock::new(Vec::new());
-
-/// The BSDF plugins loaded from libraries so far.
-pub fn loaded_bsdfs() -> Vec<&'static BsdfPlugin> {
-    BSDFS.read().map(|v| v.clone()).unwrap_or_default()
-}
-
 /// Checks a declaration's versions against this program's.
 pub fn check_versions(api_version: u32, rustc_version: &str) -> Result<(), String> {
     if api_version != API_VERSION {
@@ -104,24 +97,7 @@ pub fn load_library(path: &Path) -> Result<(), String> {
         std::slice::from_raw_parts(declaration.rustc_version, declaration.rustc_version_len)
     };
     check_versions(declaration.api_version, &String::from_utf8_lossy(rustc))?;
-    let registered: Vec<&str> = crate::registry::plugins::<BsdfPlugin>()
-        .iter()
-        .map(|p| p.name)
-        .collect();
-    if let Some(plugin) = declaration
-        .bsdfs
-        .iter()
-        .find(|p| registered.contains(&p.name))
-    {
-        return Err(format!(
-            "its BSDF `{}` has the name of a plugin that is already registered",
-            plugin.name
-        ));
-    }
-    BSDFS
-        .write()
-        .map_err(|_| "plugin registry poisoned")?
-        .extend(declaration.bsdfs);
+    crate::registry::register_bsdfs(declaration.bsdfs)?;
     libraries.push((canonical, library));
     Ok(())
 }

@@ -1,16 +1,7 @@
 //! The film: colour and AOV buffers of the rendered window.
 
-use crate::integrator::Aov;
 use crate::math::Rgb;
-
-/// The part of the image that is rendered, in pixels of the full film.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Window {
-    pub x: u32,
-    pub y: u32,
-    pub width: u32,
-    pub height: u32,
-}
+use crate::output::{Aov, Window};
 
 /// Rendered pixels of a window: linear RGB plus the integrator's AOV channels.
 #[derive(Clone, Debug)]
@@ -23,6 +14,36 @@ pub struct Film {
     pub aovs: Vec<Aov>,
     /// Per pixel, all AOV channels consecutively (in the order of `aovs`).
     pub aov_data: Vec<f32>,
+}
+
+/// One AOV layer of a film, found by name with [`Film::aov`].
+#[derive(Clone, Copy, Debug)]
+pub struct AovLayer<'a> {
+    film: &'a Film,
+    /// Offset of the layer's first channel within a pixel's AOV values.
+    offset: usize,
+    aov: &'a Aov,
+}
+
+impl AovLayer<'_> {
+    /// The layer's channel names, in order.
+    pub fn channel_names(&self) -> &[String] {
+        &self.aov.channels
+    }
+
+    /// Values of the channel named `name`, one per pixel in row order; `None` if the layer has
+    /// no such channel.
+    pub fn channel(&self, name: &str) -> Option<Vec<f32>> {
+        let index = self.aov.channels.iter().position(|c| c == name)?;
+        Some(self.film.channel_values(self.offset + index).collect())
+    }
+
+    /// Every channel's values, in the order of [`channel_names`](Self::channel_names).
+    pub fn channels(&self) -> Vec<Vec<f32>> {
+        (0..self.aov.channels.len())
+            .map(|c| self.film.channel_values(self.offset + c).collect())
+            .collect()
+    }
 }
 
 impl Film {
@@ -44,18 +65,29 @@ impl Film {
         aov_channel_count(&self.aovs)
     }
 
-    /// Values of channel `channel` of AOV `aov`, one per pixel in row order.
+    /// The AOV layer named `name`, if the integrator declared it.
+    pub fn aov(&self, name: &str) -> Option<AovLayer<'_>> {
+        let index = self.aovs.iter().position(|a| a.name == name)?;
+        Some(AovLayer {
+            film: self,
+            offset: aov_channel_count(&self.aovs[..index]),
+            aov: &self.aovs[index],
+        })
+    }
+
+    /// Values of channel `channel` of AOV `aov` (positions in `aovs` and its channels), one per
+    /// pixel in row order: for writers that go through every layer; readers of a particular
+    /// layer use [`aov`](Self::aov).
     pub fn aov_channel(&self, aov: usize, channel: usize) -> impl Iterator<Item = f32> + '_ {
-        let offset: usize = self.aovs[..aov]
-            .iter()
-            .map(|a| a.channels.len())
-            .sum::<usize>()
-            + channel;
-        let stride = self.aov_channels();
+        self.channel_values(aov_channel_count(&self.aovs[..aov]) + channel)
+    }
+
+    /// Values of the AOV channel at `offset` within a pixel's AOV values.
+    fn channel_values(&self, offset: usize) -> impl Iterator<Item = f32> + '_ {
         self.aov_data
             .iter()
             .skip(offset)
-            .step_by(stride.max(1))
+            .step_by(self.aov_channels().max(1))
             .copied()
     }
 }

@@ -1,25 +1,53 @@
-//! The integrator interface: computes one pixel's radiance and its optional AOVs.
+//! The integrator interface. Core owns the camera samples ([`crate::render`]): per pixel it
+//! draws each camera sample's random stream and primary ray ([`CameraSample::new`]), asks the
+//! integrator to shade it, and sums the results; the integrator shades one camera sample at a
+//! time and turns a pixel's sums into its AOV values at the end ([`Integrator::resolve`]).
+//!
+//! Everything an integrator accumulates per pixel is a *sum* over camera samples (f64), so that
+//! the samples of a pixel may be shaded in several parts (tiles, shards, sample ranges) whose
+//! sums add up exactly to those of one pass; averages are formed only in `resolve`.
 
+use crate::accel::Ray;
 use crate::math::Rgb;
+use crate::output::Aov;
+use crate::sampler::Sampler;
 use crate::scene::Scene;
-use glam::UVec2;
+use glam::{UVec2, Vec2};
 
-/// An output layer besides colour, declared by the integrator so the film allocates only
-/// what is asked for. Written to the EXR as channels `name.channel`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Aov {
-    pub name: String,
-    pub channels: Vec<String>,
-    /// Also written as `<output>.<name>.png`: three channels of display colours in [0, 1].
-    pub preview: bool,
+/// One camera sample of one pixel: its random stream and its primary ray.
+pub struct CameraSample {
+    /// Film coordinates of the pixel.
+    pub pixel: UVec2,
+    /// Index of this sample among the pixel's `spp`.
+    pub index: u32,
+    /// The sample's random numbers, keyed by (seed, pixel, index): the same for any number of
+    /// threads and any order of rendering. The film offset has already been drawn from it.
+    pub sampler: Sampler,
+    /// The primary ray through the (jittered) film position.
+    pub ray: Ray,
 }
 
-/// Where `render_pixel` writes its results.
-pub struct PixelOutput<'a> {
-    /// The pixel's radiance estimate.
-    pub color: Rgb,
-    /// The AOV values of this pixel, in the order of `Integrator::aovs`, channels consecutive.
-    pub aovs: &'a mut [f32],
+impl CameraSample {
+    /// Camera sample `index` of `pixel`: its stream and its ray through the pixel, jittered
+    /// when the scene asks for it, through the pixel's centre otherwise.
+    pub fn new(scene: &Scene, pixel: UVec2, index: u32) -> Self {
+        let pixel_index = pixel.y as u64 * scene.width as u64 + pixel.x as u64;
+        let mut sampler = Sampler::new(scene.seed, pixel_index, index as u64);
+        // Drawn either way, so that the rest of the stream does not depend on the jitter.
+        let offset = sampler.next_2d();
+        let film = pixel.as_vec2()
+            + if scene.jitter {
+                offset
+            } else {
+                Vec2::splat(0.5)
+            };
+        CameraSample {
+            pixel,
+            index,
+            sampler,
+            ray: scene.camera.generate_ray(film),
+        }
+    }
 }
 
 /// A light-transport algorithm.
@@ -29,8 +57,22 @@ pub trait Integrator: Send + Sync {
     fn aovs(&self, _scene: &Scene) -> Vec<Aov> {
         Vec::new()
     }
+
+    /// How many f64 sums per pixel [`shade`](Self::shade) accumulates (the statistics its AOVs
+    /// are resolved from); 0, the default, when it keeps none.
+    fn pixel_sums(&self, _scene: &Scene) -> usize {
+        0
+    }
+
     /// Work done once per scene before the pixels (e.g. estimating α in a separate pass).
     fn preprocess(&mut self, _scene: &Scene) {}
-    /// Renders pixel `pixel` (film coordinates) with the scene's camera samples per pixel.
-    fn render_pixel(&self, scene: &Scene, pixel: UVec2, out: &mut PixelOutput<'_>);
+
+    /// Shades one camera sample: returns its radiance estimate and *adds* its statistics to
+    /// `sums`, the pixel's `pixel_sums` sums so far (all zero before its first sample). It must
+    /// only add: core may shade a pixel's samples in parts and add the parts' sums.
+    fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb;
+
+    /// Turns a pixel's sums over its `samples` camera samples into its AOV values (`aovs`, in
+    /// the order of [`aovs`](Self::aovs), channels consecutive). Called once per finished pixel.
+    fn resolve(&self, _scene: &Scene, _sums: &[f64], _samples: u32, _aovs: &mut [f32]) {}
 }

@@ -12,6 +12,7 @@ pub mod film;
 pub mod image_io;
 pub mod integrator;
 pub mod math;
+pub mod output;
 pub mod params;
 pub mod registry;
 pub mod render;

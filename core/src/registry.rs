@@ -4,14 +4,16 @@
 //! inventory::submit! { BsdfPlugin { name: "diffuse", description: "...", params: PARAMS, create } }
 //! ```
 //!
-//! The facade crate links every plugin crate so the linker keeps these registrations.
+//! The facade crate links every plugin crate so the linker keeps these registrations. BSDFs
+//! may also be registered at run time ([`register_bsdfs`], used by [`crate::dylib`], which
+//! depends on this module and not the other way round).
 
 use crate::bsdf::Bsdf;
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::did_you_mean;
 use crate::integrator::Integrator;
 use crate::params::{ParamSpec, Params, PluginError};
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 
 /// Builds an emitter from its parameters and, for area emitters, its shape.
 pub type CreateEmitter = fn(&mut Params, &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError>;
@@ -70,9 +72,36 @@ macro_rules! plugin_info {
         }
     };
 }
-plugin_info!(BsdfPlugin, "bsdf", crate::dylib::loaded_bsdfs());
+plugin_info!(BsdfPlugin, "bsdf", loaded_bsdfs());
 plugin_info!(EmitterPlugin, "emitter", Vec::new());
 plugin_info!(IntegratorPlugin, "integrator", Vec::new());
+
+/// BSDF plugins registered at run time, in the order they were registered.
+static LOADED_BSDFS: RwLock<Vec<&'static BsdfPlugin>> = RwLock::new(Vec::new());
+
+fn loaded_bsdfs() -> Vec<&'static BsdfPlugin> {
+    LOADED_BSDFS.read().map(|v| v.clone()).unwrap_or_default()
+}
+
+/// Registers BSDF plugins at run time (from a plugin library). Refuses them all, naming the
+/// first, if one has the name of a plugin that is already registered.
+pub fn register_bsdfs(bsdfs: &'static [BsdfPlugin]) -> Result<(), String> {
+    let mut loaded = LOADED_BSDFS
+        .write()
+        .map_err(|_| "plugin registry poisoned")?;
+    let taken = |name: &str| {
+        builtin::<BsdfPlugin>().iter().any(|p| p.name == name)
+            || loaded.iter().any(|p| p.name == name)
+    };
+    if let Some(plugin) = bsdfs.iter().find(|p| taken(p.name)) {
+        return Err(format!(
+            "its BSDF `{}` has the name of a plugin that is already registered",
+            plugin.name
+        ));
+    }
+    loaded.extend(bsdfs);
+    Ok(())
+}
 
 /// The built-in plugins of one kind, sorted by name.
 pub fn builtin<P: PluginInfo + inventory::Collect>() -> Vec<&'static P> {

@@ -27,6 +27,7 @@ use lumis_core::math::Rgb;
 use lumis_core::scene::Scene;
 use lumis_core::scene::description::PluginSpec;
 use lumis_core::scene::load::{LoadedScene, build_integrator, load_scene};
+use lumis_integrators::{alpha, aovs, balance, mis};
 use metrics::RunStatistics;
 pub use report::{Row, SweepPoint};
 use ron::Value;
@@ -61,7 +62,7 @@ impl Choice {
             };
             params.insert(key.trim().to_string(), value);
         }
-        for reserved in ["samples", "aovs"] {
+        for reserved in [mis::SAMPLES, mis::AOVS] {
             if params.contains_key(reserved) {
                 bail!("`{text}`: `{reserved}` is set by the study, not per integrator");
             }
@@ -77,7 +78,7 @@ impl Choice {
 
     /// The `mode` parameter, if set (the `alpha` integrator's integrated / preprocessed / fixed).
     pub fn mode(&self) -> Option<&str> {
-        match self.spec.params.get("mode") {
+        match self.spec.params.get(alpha::MODE) {
             Some(Value::String(s)) => Some(s),
             _ => None,
         }
@@ -85,15 +86,17 @@ impl Choice {
 
     /// The second-order α with integrated estimation (the paper's Table 2 method).
     pub fn is_integrated_alpha(&self) -> bool {
-        self.spec.kind == "alpha" && matches!(self.mode(), None | Some("integrated"))
+        self.spec.kind == alpha::NAME && matches!(self.mode(), None | Some(alpha::INTEGRATED))
     }
 
     fn with(&self, samples: u32, extra: &[(&str, Value)], aovs: &[&str]) -> PluginSpec {
         let mut spec = self.spec.clone();
-        spec.params
-            .insert("samples".into(), Value::Number(u64::from(samples).into()));
+        spec.params.insert(
+            mis::SAMPLES.into(),
+            Value::Number(u64::from(samples).into()),
+        );
         let aovs = aovs.iter().map(|a| Value::String(a.to_string())).collect();
-        spec.params.insert("aovs".into(), Value::Seq(aovs));
+        spec.params.insert(mis::AOVS.into(), Value::Seq(aovs));
         for (k, v) in extra {
             spec.params.insert(k.to_string(), v.clone());
         }
@@ -255,7 +258,7 @@ pub struct SceneResults {
     pub sweeps: Vec<SweepPoint>,
 }
 
-/// Runs a study, reporting progress on `bar` and stopping at the next tile once `cancel` is set.
+/// Runs a study, reporting progress on `bar` and stopping at the next camera sample once `cancel` is set.
 pub fn run(config: &StudyConfig, bar: &ProgressBar, cancel: &AtomicBool) -> Result<()> {
     validate(config)?;
     if let Some(notes) = &config.notes {
@@ -385,7 +388,7 @@ impl Study<'_> {
                     continue;
                 }
                 // Its pilot alone (M samples at α = ½) outlasts α's whole render.
-                if choice.mode() == Some("preprocessed") {
+                if choice.mode() == Some(alpha::PREPROCESSED) {
                     self.bar.inc(config.runs as u64);
                     continue;
                 }
@@ -472,14 +475,22 @@ impl Study<'_> {
     fn sweeps(&mut self, name: &str, loaded: &mut LoadedScene, base: &Path) -> Result<()> {
         let config = self.config;
         let n = config.samples;
-        let alpha = Choice::parse("alpha")?;
+        let alpha = Choice::parse(alpha::NAME)?;
         let number = |v: f64| Value::Number(v.into());
         let interval = |lo: f64, hi: f64| Value::Seq(vec![number(lo), number(hi)]);
         if config.sweeps.clamp {
             for size in CLAMP_SIZES {
                 let clamp = interval(0.5 - size / 2.0, 0.5 + size / 2.0);
-                let m = self.measure(name, loaded, base, &alpha, n, &[("clamp", clamp)], false)?;
-                self.push_sweep(SweepPoint::new(name, "clamp", "alpha", size, &m))?;
+                let m = self.measure(
+                    name,
+                    loaded,
+                    base,
+                    &alpha,
+                    n,
+                    &[(alpha::CLAMP, clamp)],
+                    false,
+                )?;
+                self.push_sweep(SweepPoint::new(name, "clamp", alpha::NAME, size, &m))?;
             }
         }
         if config.sweeps.alpha_samples {
@@ -490,21 +501,30 @@ impl Study<'_> {
                 .collect();
             counts.dedup();
             for count in counts {
-                let extra = [("alpha_samples", Value::Number(u64::from(count).into()))];
+                let extra = [(alpha::ALPHA_SAMPLES, Value::Number(u64::from(count).into()))];
                 let m = self.measure(name, loaded, base, &alpha, n, &extra, false)?;
-                self.push_sweep(SweepPoint::new(name, "m", "alpha", count as f64, &m))?;
+                self.push_sweep(SweepPoint::new(name, "m", alpha::NAME, count as f64, &m))?;
             }
         }
         if config.sweeps.convergence {
             let fixed_m = (n / 4).max(1);
-            let balance = Choice::parse("balance")?;
+            let balance = Choice::parse(balance::NAME)?;
             for multiple in CONVERGENCE_MULTIPLES {
                 let samples = fixed_m * multiple;
-                let extra = [("alpha_samples", Value::Number(u64::from(fixed_m).into()))];
+                let extra = [(
+                    alpha::ALPHA_SAMPLES,
+                    Value::Number(u64::from(fixed_m).into()),
+                )];
                 let m = self.measure(name, loaded, base, &alpha, samples, &extra, false)?;
-                self.push_sweep(SweepPoint::new(name, "n", "alpha", samples as f64, &m))?;
+                self.push_sweep(SweepPoint::new(name, "n", alpha::NAME, samples as f64, &m))?;
                 let m = self.measure(name, loaded, base, &balance, samples, &[], false)?;
-                self.push_sweep(SweepPoint::new(name, "n", "balance", samples as f64, &m))?;
+                self.push_sweep(SweepPoint::new(
+                    name,
+                    "n",
+                    balance::NAME,
+                    samples as f64,
+                    &m,
+                ))?;
             }
         }
         Ok(())
@@ -523,9 +543,9 @@ impl Study<'_> {
         against_reference: bool,
     ) -> Result<Measurement> {
         let config = self.config;
-        let mut aovs = vec!["sampling_variance"];
-        if choice.spec.kind == "alpha" {
-            aovs.push("alpha");
+        let mut aovs = vec![aovs::SAMPLING_VARIANCE];
+        if choice.spec.kind == alpha::NAME {
+            aovs.push(aovs::ALPHA);
         }
         let spec = choice.with(samples, extra, &aovs);
         let mut integrator = build_integrator(&spec, base)
@@ -554,7 +574,7 @@ impl Study<'_> {
             loaded.scene.seed = config.seed + 1 + k as u64;
             let (film, time, cpu_time) = self.render(&loaded.scene, integrator.as_mut())?;
             runs.add(&film.color);
-            let variance = aov(&film, "sampling_variance", 0)
+            let variance = aov(&film, aovs::SAMPLING_VARIANCE, aovs::Y)
                 .context("the integrator has no sampling_variance AOV")?;
             sampling.push(variance.iter().map(|&v| v as f64).sum::<f64>() / pixels as f64);
             medians.push(metrics::median(
@@ -650,7 +670,7 @@ impl Study<'_> {
         self.bar.set_message(format!(
             "{name}: reference, {total} samples per light per pixel (balance)"
         ));
-        let spec = Choice::parse("balance")?.with(per_run, &[], &[]);
+        let spec = Choice::parse(balance::NAME)?.with(per_run, &[], &[]);
         let mut integrator = build_integrator(&spec, base).map_err(anyhow::Error::msg)?;
         let spp = std::mem::replace(&mut loaded.scene.spp, 1);
         let mut sum = vec![glam::DVec3::ZERO; pixels];
@@ -674,7 +694,7 @@ impl Study<'_> {
         }
         loaded.scene.spp = spp;
         let scene = &loaded.scene;
-        let aov = lumis_core::integrator::Aov {
+        let aov = lumis_core::output::Aov {
             name: "reference_variance".into(),
             channels: vec!["Y".into()],
             preview: false,
@@ -686,7 +706,7 @@ impl Study<'_> {
         let metadata: Metadata = vec![
             ("scene".into(), path.display().to_string()),
             ("key".into(), key),
-            ("integrator".into(), "balance".into()),
+            ("integrator".into(), balance::NAME.into()),
             ("samples".into(), total.to_string()),
             ("time".into(), format!("{time:.3}")),
         ];
@@ -762,13 +782,12 @@ fn read_reference(
     })
 }
 
-fn aov(film: &Film, name: &str, channel: usize) -> Option<Vec<f32>> {
-    let i = film.aovs.iter().position(|a| a.name == name)?;
-    Some(film.aov_channel(i, channel).collect())
+fn aov(film: &Film, name: &str, channel: &str) -> Option<Vec<f32>> {
+    film.aov(name)?.channel(channel)
 }
 
 fn alpha_colors(film: &Film) -> Option<Vec<[f32; 3]>> {
-    let [r, g, b] = [0, 1, 2].map(|c| aov(film, "alpha_color", c));
+    let [r, g, b] = ["R", "G", "B"].map(|c| aov(film, aovs::ALPHA_COLOR, c));
     let (r, g, b) = (r?, g?, b?);
     Some((0..r.len()).map(|i| [r[i], g[i], b[i]]).collect())
 }

@@ -24,7 +24,9 @@ impl PanelImages {
     /// Keeps the first run of balance and of integrated α; equal-time runs replace
     /// equal-sample ones.
     pub(super) fn keep(&mut self, choice: &Choice, m: &Measurement, equal_time: bool) {
-        if choice.spec.kind == "balance" && (equal_time || self.balance.is_none()) {
+        if choice.spec.kind == lumis_integrators::balance::NAME
+            && (equal_time || self.balance.is_none())
+        {
             self.balance = Some(m.image.clone());
         }
         if choice.is_integrated_alpha() && (equal_time || self.alpha.is_none()) {

@@ -2,6 +2,8 @@
 //! study prints its ratios to the balance heuristic beside ours. Scenes `01` … `11` of
 //! `scenes/paper/` are analogues of the paper's scenes 1 … 11: compare ratios, not values.
 
+use lumis_integrators::{alpha, balance, bsdf, light, max, power};
+
 /// One scene's row of the paper's tables.
 pub struct PaperScene {
     /// Table 1: mean sampling variance V[L_{1,α}] at N = 256.
@@ -29,13 +31,13 @@ impl PerMethod {
     /// The value for a study integrator: its plugin name and, for `alpha`, its mode.
     pub fn get(&self, kind: &str, mode: Option<&str>) -> Option<f64> {
         let v = match (kind, mode) {
-            ("bsdf", _) => self.bsdf,
-            ("light", _) => self.light,
-            ("balance", _) => self.balance,
-            ("power", _) => self.power,
-            ("max", _) => self.max,
-            ("alpha", None | Some("integrated")) => self.alpha,
-            ("alpha", Some("preprocessed")) => self.alpha_preprocessed,
+            (bsdf::NAME, _) => self.bsdf,
+            (light::NAME, _) => self.light,
+            (balance::NAME, _) => self.balance,
+            (power::NAME, _) => self.power,
+            (max::NAME, _) => self.max,
+            (alpha::NAME, None | Some(alpha::INTEGRATED)) => self.alpha,
+            (alpha::NAME, Some(alpha::PREPROCESSED)) => self.alpha_preprocessed,
             _ => return None,
         };
         v.is_finite().then_some(v)

@@ -6,6 +6,7 @@ use super::SceneResults;
 use super::report::{Row, SweepPoint, sig};
 use anyhow::{Result, anyhow};
 use lumis_core::image_io::write_rgb8_png;
+use lumis_integrators::{alpha, balance};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -266,7 +267,7 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
             .collect()
     };
     let clamp = per_scene("clamp", &|s| {
-        relative_to_best(points(s, "clamp", "alpha", |p| p.estimator_variance))
+        relative_to_best(points(s, "clamp", alpha::NAME, |p| p.estimator_variance))
     });
     one_chart(
         &plots.join("clamp.png"),
@@ -278,7 +279,7 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
         &clamp,
     )?;
     let m = per_scene("m", &|s| {
-        relative_to_best(points(s, "m", "alpha", |p| p.estimator_variance))
+        relative_to_best(points(s, "m", alpha::NAME, |p| p.estimator_variance))
     });
     one_chart(
         &plots.join("m.png"),
@@ -294,9 +295,13 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
         let preprocessed = s
             .rows
             .iter()
-            .find(|r| r.kind == "alpha" && r.mode == "preprocessed" && r.budget == "equal samples")
+            .find(|r| {
+                r.kind == alpha::NAME
+                    && r.mode == alpha::PREPROCESSED
+                    && r.budget == "equal samples"
+            })
             .map_or(f64::NAN, |r| r.sampling_variance);
-        points(s, "n", "alpha", |p| p.sampling_variance)
+        points(s, "n", alpha::NAME, |p| p.sampling_variance)
             .into_iter()
             .map(|(x, y)| (x, y / preprocessed))
             .collect()
@@ -326,7 +331,7 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
             |root| {
                 let cells = root.split_evenly((rows, cols));
                 for (scene, cell) in with_n.iter().zip(&cells) {
-                    let alpha = points(scene, "n", "alpha", |p| p.estimator_variance);
+                    let alpha = points(scene, "n", alpha::NAME, |p| p.estimator_variance);
                     let first = alpha.first().map_or(f64::NAN, |p| p.1);
                     let norm =
                         |v: Vec<(f64, f64)>| v.into_iter().map(|(x, y)| (x, y / first)).collect();
@@ -337,7 +342,9 @@ pub fn study_plots(out: &Path, scenes: &[SceneResults]) -> Result<()> {
                         },
                         Series {
                             name: "balance".into(),
-                            points: norm(points(scene, "n", "balance", |p| p.estimator_variance)),
+                            points: norm(points(scene, "n", balance::NAME, |p| {
+                                p.estimator_variance
+                            })),
                         },
                     ];
                     let title = format!("{} (Figure 4)", scene.name);

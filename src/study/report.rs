@@ -5,6 +5,7 @@
 use super::{Measurement, SceneResults, StudyConfig, paper};
 use anyhow::Result;
 use lumis_core::image_io::write_atomically;
+use lumis_integrators::{alpha, balance};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -129,7 +130,7 @@ fn ratio(v: Option<f64>) -> String {
 /// The balance heuristic's row at the same budget.
 fn balance<'a>(rows: &'a [Row], budget: &str) -> Option<&'a Row> {
     rows.iter()
-        .find(|r| r.kind == "balance" && r.budget == budget)
+        .find(|r| r.kind == balance::NAME && r.budget == budget)
 }
 
 fn mode(row: &Row) -> Option<&str> {
@@ -239,7 +240,9 @@ fn summary(md: &mut String, scenes: &[SceneResults]) -> Result<()> {
         };
         let find = |pre: bool| {
             s.rows.iter().find(|r| {
-                r.kind == "alpha" && r.budget == budget && (r.mode == "preprocessed") == pre
+                r.kind == alpha::NAME
+                    && r.budget == budget
+                    && (r.mode == alpha::PREPROCESSED) == pre
             })
         };
         let p = paper::scene(&s.path);
@@ -250,16 +253,20 @@ fn summary(md: &mut String, scenes: &[SceneResults]) -> Result<()> {
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             s.name,
             ratio(alpha.map(|a| a.sampling_variance / b.sampling_variance)),
-            ratio(p.and_then(|p| p.sampling_variance.ratio("alpha", None))),
+            ratio(p.and_then(|p| p.sampling_variance.ratio(alpha::NAME, None))),
             ratio(alpha.map(|a| a.estimator_variance / b.estimator_variance)),
             ratio(alpha.map(|a| a.lab_error / b.lab_error)),
-            ratio(p.and_then(|p| p.lab_error.ratio("alpha", None))),
+            ratio(p.and_then(|p| p.lab_error.ratio(alpha::NAME, None))),
             ratio(alpha.map(|a| a.efficiency / b.efficiency)),
             ratio(p.and_then(|p| Some(
-                paper::efficiency(p, "alpha", None)? / paper::efficiency(p, "balance", None)?
+                paper::efficiency(p, alpha::NAME, None)?
+                    / paper::efficiency(p, balance::NAME, None)?
             ))),
             ratio(pre.map(|a| a.sampling_variance / b.sampling_variance)),
-            ratio(p.and_then(|p| p.sampling_variance.ratio("alpha", Some("preprocessed")))),
+            ratio(p.and_then(|p| {
+                p.sampling_variance
+                    .ratio(alpha::NAME, Some(alpha::PREPROCESSED))
+            })),
         )?;
     }
     writeln!(md)?;

@@ -50,6 +50,17 @@ pub fn load(
     lumis::scene::load_scene(path, &overrides)
 }
 
+/// The names of every registered built-in integrator, so that a new one is tested without being
+/// listed anywhere.
+pub fn integrators() -> Vec<&'static str> {
+    use lumis::registry::{IntegratorPlugin, PluginInfo, builtin};
+    lumis::link_plugins();
+    builtin::<IntegratorPlugin>()
+        .iter()
+        .map(|p| p.name())
+        .collect()
+}
+
 /// Builds the example plugin library `lumis-oren-nayar` (once per test binary) and returns its
 /// path, `target/debug/liblumis_oren_nayar.so` on Linux, where the scenes expect it.
 pub fn example_library() -> &'static Path {

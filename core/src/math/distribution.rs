@@ -274,6 +274,20 @@ impl Distribution2D {
     /// A point in [0, 1)² and its density with respect to area on the unit square.
     #[inline]
     pub fn sample(&self, u: glam::Vec2) -> (glam::Vec2, f32) {
+        let (col, row, within, pdf) = self.sample_cell(u);
+        let ny = self.marginal.len();
+        let point = glam::Vec2::new(
+            (col as f32 + within.x) / self.nx as f32,
+            (row as f32 + within.y) / ny as f32,
+        );
+        (point, pdf)
+    }
+
+    /// A cell (column, row), a uniformly distributed position within it in [0, 1)², and the
+    /// cell's density with respect to area on the unit square: for warps that continue inside
+    /// the cell (a bilinear patch) without the rounding of a round trip through [0, 1)².
+    #[inline]
+    pub fn sample_cell(&self, u: glam::Vec2) -> (usize, usize, glam::Vec2, f32) {
         let (row, uy) = self.marginal.sample_reuse(u.y);
         let (slot, v) = slot_of(u.x, self.nx);
         let cell = self.cells[row * self.nx + slot];
@@ -281,12 +295,7 @@ impl Distribution2D {
             (true, ux) => (slot, ux, cell.pdf),
             (false, ux) => (cell.alias as usize, ux, cell.alias_pdf),
         };
-        let ny = self.marginal.len();
-        let point = glam::Vec2::new(
-            (col as f32 + ux) / self.nx as f32,
-            (row as f32 + uy) / ny as f32,
-        );
-        (point, pdf)
+        (col, row, glam::Vec2::new(ux, uy), pdf)
     }
 
     /// Density at a point of [0, 1]² (with respect to area on the unit square).

@@ -28,16 +28,26 @@ pub struct SceneDescription {
     pub plugins: Vec<String>,
 }
 
-/// A perspective pinhole camera.
+/// A perspective pinhole camera: `position`, `target`, `fov` (and `up`), or `gltf` (and `name`).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(rename = "Camera", deny_unknown_fields)]
 pub struct CameraDescription {
-    pub position: [f32; 3],
-    pub target: [f32; 3],
-    #[serde(default = "default_up")]
-    pub up: [f32; 3],
+    #[serde(default, deserialize_with = "some")]
+    pub position: Option<[f32; 3]>,
+    #[serde(default, deserialize_with = "some")]
+    pub target: Option<[f32; 3]>,
+    /// Default (0, 1, 0).
+    #[serde(default, deserialize_with = "some")]
+    pub up: Option<[f32; 3]>,
     /// Vertical field of view, degrees.
-    pub fov: f32,
+    #[serde(default, deserialize_with = "some")]
+    pub fov: Option<f32>,
+    /// Take the camera from this glTF file (relative to the scene file) instead.
+    #[serde(default, deserialize_with = "some")]
+    pub gltf: Option<String>,
+    /// With `gltf`: the camera node (or camera) of this name; default the first one.
+    #[serde(default, deserialize_with = "some")]
+    pub name: Option<String>,
 }
 
 fn default_up() -> [f32; 3] {
@@ -100,25 +110,36 @@ impl Default for SamplerDescription {
     }
 }
 
-/// A shape: `type` is `gltf`, `rectangle`, `cube`, `disk` or `sphere`.
+/// A shape: `type` is `gltf`, `obj`, `ply`, `rectangle`, `cube`, `disk` or `sphere`.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(rename = "Shape", deny_unknown_fields)]
 pub struct ShapeDescription {
     #[serde(rename = "type")]
     pub kind: String,
-    /// Name of a BSDF in `bsdfs`.
-    pub bsdf: String,
+    /// Name of a BSDF in `bsdfs`; a `gltf` shape without one takes its glTF materials.
+    #[serde(default, deserialize_with = "some")]
+    pub bsdf: Option<String>,
     #[serde(default)]
     pub transform: TransformDescription,
     /// An area emitter attached to this shape.
     #[serde(default, deserialize_with = "some")]
     pub emitter: Option<PluginSpec>,
-    /// `gltf`: the `.gltf` or `.glb` file, relative to the scene file.
+    /// `gltf`, `obj`, `ply`: the mesh file, relative to the scene file.
     #[serde(default, deserialize_with = "some")]
     pub file: Option<String>,
-    /// `gltf`: only the node (with its children) or mesh of this name.
+    /// `gltf`: only the node (with its children) or mesh of this name; `obj`: only the object
+    /// or group of this name.
     #[serde(default, deserialize_with = "some")]
     pub mesh: Option<String>,
+    /// `gltf`, `obj`, `ply`: ignore the file's vertex normals (flat shading).
+    #[serde(default, deserialize_with = "some")]
+    pub face_normals: Option<bool>,
+    /// Meshes: turn every face (its front side and its normals) the other way.
+    #[serde(default, deserialize_with = "some")]
+    pub flip_normals: Option<bool>,
+    /// `gltf`: also add the file's `KHR_lights_punctual` point and directional lights.
+    #[serde(default, deserialize_with = "some")]
+    pub lights: Option<bool>,
     /// `sphere`: centre (default origin) before the transform.
     #[serde(default, deserialize_with = "some")]
     pub center: Option<[f32; 3]>,

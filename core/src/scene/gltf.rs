@@ -18,16 +18,35 @@ pub fn load(path: &Path, only: Option<&str>) -> Result<Mesh, String> {
 /// As [`load`], from the file's bytes; external buffers are read from `base`. Never panics on
 /// bad data.
 pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh, String> {
+    let mut mesh = Mesh::default();
+    for (_, part) in load_parts(bytes, base, only)? {
+        mesh.append(part);
+    }
+    Ok(mesh)
+}
+
+/// Parses and validates a glTF or GLB file (without reading its buffers).
+pub(super) fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
     // gltf 1.4's validation indexes `accessors` with a primitive's POSITION index before
     // checking it (it panics on a dangling index, found by fuzzing): check indices first.
     let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| format!("not a valid glTF file: {e}"))?;
     check_accessor_indices(&unchecked)?;
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))?;
+    gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))
+}
+
+/// As [`load_bytes`], one mesh per primitive with the index of its material (`None`: the
+/// default material), in the order [`load_bytes`] merges them.
+pub(super) fn load_parts(
+    bytes: &[u8],
+    base: &Path,
+    only: Option<&str>,
+) -> Result<Vec<(Option<usize>, Mesh)>, String> {
+    let gltf = parse(bytes)?;
     let buffers = load_buffers(&gltf, base)?;
     let doc = &gltf.document;
 
-    let mut mesh = Mesh::default();
+    let mut parts = Vec::new();
     let mut found = only.is_none();
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().collect(),
@@ -50,7 +69,9 @@ pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh,
             });
         found |= selected;
         if selected && let Some(m) = node.mesh() {
-            mesh.append(read_mesh(&m, &buffers)?.transformed(&world));
+            for (material, part) in read_mesh(&m, &buffers)? {
+                parts.push((material, part.transformed(&world)));
+            }
         }
         stack.extend(node.children().map(|c| (c, world, selected)));
     }
@@ -70,10 +91,10 @@ pub fn load_bytes(bytes: &[u8], base: &Path, only: Option<&str>) -> Result<Mesh,
             }
         ));
     }
-    if mesh.indices.is_empty() {
+    if parts.iter().all(|(_, part)| part.indices.is_empty()) {
         return Err("the file has no triangles".into());
     }
-    Ok(mesh)
+    Ok(parts)
 }
 
 /// Every accessor a mesh primitive names must exist.
@@ -130,12 +151,13 @@ fn load_buffers(gltf: &gltf::Gltf, base: &Path) -> Result<Vec<Vec<u8>>, String> 
     Ok(out)
 }
 
-fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Mesh, String> {
+/// The mesh's triangle primitives, each with the index of its material.
+fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Vec<(Option<usize>, Mesh)>, String> {
     let label = m
         .name()
         .map(|n| format!("mesh `{n}`"))
         .unwrap_or(format!("mesh {}", m.index()));
-    let mut mesh = Mesh::default();
+    let mut parts = Vec::new();
     for prim in m.primitives() {
         // Points and lines have no area: nothing to render.
         if !matches!(
@@ -218,11 +240,14 @@ fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Mesh, String> {
                 .map(|c| [c[0], c[1], c[2]])
                 .collect(),
         };
-        mesh.append(Mesh {
-            positions,
-            normals,
-            indices: triangles,
-        });
+        parts.push((
+            prim.material().index(),
+            Mesh {
+                positions,
+                normals,
+                indices: triangles,
+            },
+        ));
     }
-    Ok(mesh)
+    Ok(parts)
 }

@@ -4,14 +4,13 @@
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;
 use super::shapes::{self, ShapeGeometry, Sphere};
-use super::{Scene, gltf};
+use super::{Scene, gltf, gltf_scene, obj, ply};
 use crate::accel::Geometry;
 use crate::bsdf::Bsdf;
-use crate::camera::Camera;
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::{SceneError, did_you_mean};
-use crate::film::Window;
 use crate::integrator::Integrator;
+use crate::output::Window;
 use crate::params::Params;
 use crate::registry::{self, BsdfPlugin, EmitterPlugin, IntegratorPlugin};
 use glam::Vec3;
@@ -125,16 +124,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     if desc.sampler.spp == 0 {
         return Err(err("sampler `spp` must be at least 1".into()));
     }
-    let cam = &desc.camera;
-    let camera = Camera::new(
-        Vec3::from(cam.position),
-        Vec3::from(cam.target),
-        Vec3::from(cam.up),
-        cam.fov,
-        film.width,
-        film.height,
-    )
-    .map_err(err)?;
+    let camera = gltf_scene::build_camera(&desc.camera, path, base, film.width, film.height)?;
 
     // BSDFs, by name.
     let mut bsdf_names = Vec::new();
@@ -158,40 +148,60 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
     for (i, shape) in desc.shapes.iter().enumerate() {
         let label = format!("shapes[{i}] ({})", shape.kind);
-        let bsdf = bsdf_names
-            .iter()
-            .position(|n| *n == shape.bsdf)
-            .ok_or_else(|| {
-                err(format!(
-                    "{label} uses bsdf `{}`, which is not defined{}; defined bsdfs: {}",
-                    shape.bsdf,
-                    did_you_mean(&shape.bsdf, bsdf_names.iter().copied()),
-                    if bsdf_names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        bsdf_names.join(", ")
-                    }
-                ))
-            })?;
-        let geometry = build_shape(shape, base).map_err(|e| match e {
+        let shape_err = |e| match e {
             ShapeError::Scene(msg) => err(format!("{label}: {msg}")),
             ShapeError::Asset(file, msg) => SceneError::new(
                 file,
                 format!("{msg} (used by {label} of {})", path.display()),
             ),
-        })?;
-        shape_bsdf.push(bsdf as u32);
-        shape_emitter.push(match &shape.emitter {
-            None => None,
-            Some(spec) => {
-                let emitter =
-                    build_emitter(&format!("{label}.emitter"), spec, Some(&geometry), base)
-                        .map_err(err)?;
-                emitters.push(emitter);
-                Some(emitters.len() as u32 - 1)
+        };
+        // One part per BSDF: a gltf shape without `bsdf` has one per glTF material.
+        let mut parts = Vec::new();
+        match &shape.bsdf {
+            Some(name) => {
+                let bsdf = bsdf_names.iter().position(|n| n == name).ok_or_else(|| {
+                    err(format!(
+                        "{label} uses bsdf `{name}`, which is not defined{}; defined bsdfs: {}",
+                        did_you_mean(name, bsdf_names.iter().copied()),
+                        if bsdf_names.is_empty() {
+                            "none".to_string()
+                        } else {
+                            bsdf_names.join(", ")
+                        }
+                    ))
+                })?;
+                parts.push((bsdf, build_shape(shape, base).map_err(shape_err)?));
             }
-        });
-        geometries.push(geometry);
+            None => {
+                for (material, spec, geometry) in
+                    build_gltf_material_parts(shape, base).map_err(shape_err)?
+                {
+                    let name = format!("{label} {material}");
+                    let plugin = registry::find::<BsdfPlugin>(&spec.kind)
+                        .map_err(|e| err(format!("{name}: {e}")))?;
+                    let mut params =
+                        plugin_params(&name, "bsdf", &spec, plugin.params).map_err(err)?;
+                    let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
+                    params.finish().map_err(|e| err(e.to_string()))?;
+                    bsdfs.push(bsdf);
+                    parts.push((bsdfs.len() - 1, geometry));
+                }
+            }
+        }
+        for (bsdf, geometry) in parts {
+            shape_bsdf.push(bsdf as u32);
+            shape_emitter.push(match &shape.emitter {
+                None => None,
+                Some(spec) => {
+                    let emitter =
+                        build_emitter(&format!("{label}.emitter"), spec, Some(&geometry), base)
+                            .map_err(err)?;
+                    emitters.push(emitter);
+                    Some(emitters.len() as u32 - 1)
+                }
+            });
+            geometries.push(geometry);
+        }
     }
     let mut environment = None;
     for (i, spec) in desc.emitters.iter().enumerate() {
@@ -205,6 +215,28 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             environment = Some(emitters.len());
         }
         emitters.push(emitter);
+    }
+
+    // Lights of glTF files (`lights: true`), after the `emitters` list.
+    for (i, shape) in desc.shapes.iter().enumerate() {
+        if shape.lights != Some(true) {
+            continue;
+        }
+        let file = base.join(shape.file.as_deref().unwrap_or_default());
+        let matrix = shapes::transform_matrix(&shape.transform).map_err(err)?;
+        let lights = std::fs::read(&file)
+            .map_err(|e| format!("cannot read glTF file: {e}"))
+            .and_then(|bytes| gltf_scene::gltf_lights(&bytes, &matrix))
+            .map_err(|m| {
+                SceneError::new(
+                    &file,
+                    format!("{m} (lights of shapes[{i}] of {})", path.display()),
+                )
+            })?;
+        for (name, spec) in lights {
+            let label = format!("shapes[{i}] {name}");
+            emitters.push(build_emitter(&label, &spec, None, base).map_err(err)?);
+        }
     }
 
     let integrator = build_integrator(&desc.integrator, base).map_err(err)?;
@@ -296,15 +328,18 @@ enum ShapeError {
     Asset(PathBuf, String),
 }
 
-fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, ShapeError> {
+/// Refuses an unknown shape type, and fields that do not apply to the shape's type.
+fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
     let scene_err = |m: String| ShapeError::Scene(m);
     let allowed: &[&str] = match shape.kind.as_str() {
-        "gltf" => &["file", "mesh"],
+        "gltf" => &["file", "mesh", "face_normals", "flip_normals", "lights"],
+        "obj" => &["file", "mesh", "face_normals", "flip_normals"],
+        "ply" => &["file", "face_normals", "flip_normals"],
         "sphere" => &["center", "radius"],
-        "disk" => &["segments"],
-        "rectangle" | "cube" => &[],
+        "disk" => &["segments", "flip_normals"],
+        "rectangle" | "cube" => &["flip_normals"],
         other => {
-            const KINDS: [&str; 5] = ["gltf", "rectangle", "cube", "disk", "sphere"];
+            const KINDS: [&str; 7] = ["gltf", "rectangle", "cube", "disk", "sphere", "obj", "ply"];
             return Err(scene_err(format!(
                 "unknown shape type `{other}`{}; known shape types: {}",
                 did_you_mean(other, KINDS),
@@ -318,6 +353,9 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
         ("center", shape.center.is_some()),
         ("radius", shape.radius.is_some()),
         ("segments", shape.segments.is_some()),
+        ("face_normals", shape.face_normals.is_some()),
+        ("flip_normals", shape.flip_normals.is_some()),
+        ("lights", shape.lights.is_some()),
     ];
     if let Some((name, _)) = given
         .iter()
@@ -328,6 +366,12 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
             shape.kind
         )));
     }
+    Ok(())
+}
+
+fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, ShapeError> {
+    let scene_err = |m: String| ShapeError::Scene(m);
+    check_shape_fields(shape)?;
     let matrix = shapes::transform_matrix(&shape.transform).map_err(scene_err)?;
     let mesh = match shape.kind.as_str() {
         "gltf" => {
@@ -338,6 +382,18 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
             let file = base.join(file);
             gltf::load(&file, shape.mesh.as_deref())
                 .map_err(|m| ShapeError::Asset(file.clone(), m))?
+        }
+        "obj" | "ply" => {
+            let file = shape
+                .file
+                .as_ref()
+                .ok_or_else(|| scene_err(format!("a {} shape needs `file`", shape.kind)))?;
+            let file = base.join(file);
+            match shape.kind.as_str() {
+                "obj" => obj::load(&file, shape.mesh.as_deref()),
+                _ => ply::load(&file),
+            }
+            .map_err(|m| ShapeError::Asset(file.clone(), m))?
         }
         "rectangle" => shapes::rectangle(),
         "cube" => shapes::cube(),
@@ -373,5 +429,59 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
             }));
         }
     };
-    Ok(ShapeGeometry::Mesh(mesh.transformed(&matrix)))
+    Ok(ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)))
+}
+
+/// The shape's normal options, then its transform.
+fn finish_mesh(
+    shape: &ShapeDescription,
+    mut mesh: shapes::Mesh,
+    matrix: &glam::Mat4,
+) -> shapes::Mesh {
+    if shape.face_normals == Some(true) {
+        mesh.normals = None;
+    }
+    if shape.flip_normals == Some(true) {
+        mesh = mesh.flipped();
+    }
+    mesh.transformed(matrix)
+}
+
+/// A `gltf` shape without `bsdf`: one part per glTF material, with the BSDF it maps to.
+fn build_gltf_material_parts(
+    shape: &ShapeDescription,
+    base: &Path,
+) -> Result<Vec<(String, PluginSpec, ShapeGeometry)>, ShapeError> {
+    if shape.kind != "gltf" {
+        return Err(ShapeError::Scene(
+            "needs `bsdf` (only gltf shapes can take their materials from the file)".into(),
+        ));
+    }
+    check_shape_fields(shape)?;
+    let matrix = shapes::transform_matrix(&shape.transform).map_err(ShapeError::Scene)?;
+    let file = shape
+        .file
+        .as_ref()
+        .ok_or_else(|| ShapeError::Scene("a gltf shape needs `file`".into()))?;
+    let file = base.join(file);
+    let parts = std::fs::read(&file)
+        .map_err(|e| format!("cannot read glTF file: {e}"))
+        .and_then(|bytes| {
+            gltf_scene::gltf_materials(
+                &bytes,
+                file.parent().unwrap_or(Path::new(".")),
+                shape.mesh.as_deref(),
+            )
+        })
+        .map_err(|m| ShapeError::Asset(file.clone(), m))?;
+    Ok(parts
+        .into_iter()
+        .map(|(name, spec, mesh)| {
+            (
+                name,
+                spec,
+                ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)),
+            )
+        })
+        .collect())
 }

@@ -2,15 +2,18 @@
 
 pub mod description;
 pub mod gltf;
+pub mod gltf_scene;
 pub mod load;
+pub mod obj;
 pub mod overrides;
+pub mod ply;
 pub mod shapes;
 
 use crate::accel::{FirstHit, Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
-use crate::film::Window;
+use crate::output::Window;
 use std::path::PathBuf;
 use std::sync::Arc;
 

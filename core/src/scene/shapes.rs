@@ -49,6 +49,19 @@ impl Mesh {
         self
     }
 
+    /// Every face turned the other way: winding reversed and normals negated.
+    pub fn flipped(mut self) -> Mesh {
+        for t in &mut self.indices {
+            t.swap(1, 2);
+        }
+        if let Some(normals) = &mut self.normals {
+            for n in normals.iter_mut() {
+                *n = -*n;
+            }
+        }
+        self
+    }
+
     /// Appends another mesh (used to merge the nodes of one glTF shape).
     pub fn append(&mut self, other: Mesh) {
         let offset = self.positions.len() as u32;

@@ -1,5 +1,5 @@
-//! `glossy`: GGX (Trowbridge–Reitz) microfacet reflection with height-correlated Smith masking
-//! and Schlick's Fresnel, over an optional diffuse base.
+//! `glossy`: GGX (Trowbridge–Reitz) microfacet reflection with Smith masking-shadowing and
+//! Schlick's Fresnel, over an optional diffuse base.
 //!
 //! Parameters:
 //! - `roughness` (float, default 0.1, in [0.0001, 1]): the GGX α (≈ the squared perceptual
@@ -7,6 +7,12 @@
 //! - `specular` (rgb, default (0.04, 0.04, 0.04), in [0, 1]): F0, the reflectance at normal
 //!   incidence.
 //! - `diffuse` (rgb, default (0, 0, 0), in [0, 1]): albedo of the diffuse base layer.
+//! - `masking` (choice, default `height_correlated`, or `separable`): the Smith masking-shadowing
+//!   term G₂(ωo, ωi). `height_correlated` is 1 / (1 + Λ(ωo) + Λ(ωi)) (Heitz 2014, the more
+//!   accurate, and pbrt-v3's and pbrt-v4's); `separable` is G₁(ωo) G₁(ωi) =
+//!   1 / ((1 + Λ(ωo))(1 + Λ(ωi))), as Mitsuba 3's `roughconductor` uses. They agree at normal
+//!   incidence; the separable term is smaller by the factor (1 + Λ(ωo) + Λ(ωi)) /
+//!   ((1 + Λ(ωo))(1 + Λ(ωi))) toward grazing angles.
 //!
 //! The base is Ashikhmin and Shirley's (2000) energy-conserving diffuse term, reciprocal and
 //! weighted by (1 − F0) so that specular plus diffuse never reflect more than arrives.
@@ -27,6 +33,16 @@ pub struct Glossy {
     alpha: f32,
     f0: Rgb,
     diffuse: Rgb,
+    masking: Masking,
+}
+
+/// The form of Smith's masking-shadowing term G₂.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Masking {
+    /// 1 / (1 + Λ(ωo) + Λ(ωi)).
+    HeightCorrelated,
+    /// G₁(ωo) G₁(ωi), Mitsuba 3's.
+    Separable,
 }
 
 /// Schlick's approximation of the Fresnel reflectance.
@@ -37,8 +53,13 @@ fn schlick(f0: Rgb, cos: f32) -> Rgb {
 }
 
 impl Glossy {
-    pub fn new(alpha: f32, f0: Rgb, diffuse: Rgb) -> Self {
-        Glossy { alpha, f0, diffuse }
+    pub fn new(alpha: f32, f0: Rgb, diffuse: Rgb, masking: Masking) -> Self {
+        Glossy {
+            alpha,
+            f0,
+            diffuse,
+            masking,
+        }
     }
 
     /// GGX normal distribution D(h), h in the local frame.
@@ -67,9 +88,13 @@ impl Glossy {
         1.0 / (1.0 + self.lambda(w))
     }
 
-    /// Height-correlated masking-shadowing G2(ωo, ωi).
+    /// Masking-shadowing G2(ωo, ωi).
     fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+        let (lo, li) = (self.lambda(wo), self.lambda(wi));
+        match self.masking {
+            Masking::HeightCorrelated => 1.0 / (1.0 + lo + li),
+            Masking::Separable => 1.0 / ((1.0 + lo) * (1.0 + li)),
+        }
     }
 
     /// Probability of sampling the specular lobe for this ωo.
@@ -194,13 +219,26 @@ static PARAMS: &[ParamSpec] = &[
         unit: "",
         description: "albedo of the diffuse base layer, per channel in [0, 1]",
     },
+    ParamSpec {
+        name: "masking",
+        kind: ParamKind::Choice {
+            options: &["height_correlated", "separable"],
+            default: "height_correlated",
+        },
+        unit: "",
+        description: "Smith masking-shadowing G2: height-correlated (as pbrt), or separable G1·G1 (as Mitsuba 3)",
+    },
 ];
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
     let alpha = params.float("roughness")?;
     let f0 = params.rgb("specular")?;
     let diffuse = params.rgb("diffuse")?;
-    Ok(Arc::new(Glossy::new(alpha, f0, diffuse)))
+    let masking = match params.choice("masking")? {
+        "separable" => Masking::Separable,
+        _ => Masking::HeightCorrelated,
+    };
+    Ok(Arc::new(Glossy::new(alpha, f0, diffuse, masking)))
 }
 
 inventory::submit! {

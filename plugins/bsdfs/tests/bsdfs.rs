@@ -1,5 +1,8 @@
-//! Statistical and numerical tests of every built-in BSDF: chi-square of `sample` against `pdf`,
-//! sample weight = eval / pdf, white furnace, reciprocity, and finite values for hostile input.
+//! Statistical and numerical tests of every registered built-in BSDF: chi-square of `sample`
+//! against `pdf`, sample weight = eval / pdf, white furnace (albedo ≤ 1, and 1 where lossless),
+//! reciprocity, and finite values for hostile input. The BSDFs come from the registry; each has
+//! an entry in [`plan`] with the configurations to test, and a BSDF registered without one fails
+//! `every_registered_bsdf_has_a_test_plan`.
 
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::Bsdf;
@@ -52,83 +55,243 @@ fn incident(cos: f32) -> Vec3 {
 const INCIDENT: [f32; 3] = [1.0, std::f32::consts::FRAC_1_SQRT_2, 1e-3];
 const ROUGHNESS: [f32; 6] = [1e-4, 1e-3, 1e-2, 0.1, 0.5, 1.0];
 
-fn glossy_cases() -> Vec<(String, String, f32)> {
-    let mut cases = Vec::new();
-    for a in ROUGHNESS {
-        cases.push((
-            format!("glossy a={a}"),
-            format!("\"roughness\": {a}, \"specular\": 0.9"),
-            a,
-        ));
-        cases.push((
-            format!("glossy a={a} +base"),
-            format!("\"roughness\": {a}, \"diffuse\": 0.5"),
-            a,
-        ));
+/// How one configuration is chi-square tested at incidence cos θo.
+struct Chi2Setup {
+    wo: Vec3,
+    test: Chi2Test,
+    /// Histogram half vectors instead of directions (see [`half_vector_chi2`]).
+    half_vector: bool,
+}
+
+/// One configuration of a BSDF and how its sampling is chi-square tested: `None` at incidences
+/// where no histogram resolves the lobe (covered by the other tests instead).
+struct Case {
+    label: String,
+    bsdf: Arc<dyn Bsdf>,
+    chi2: Box<dyn Fn(f32) -> Option<Chi2Setup>>,
+}
+
+/// A furnace configuration: its albedo is at most 1 at every incidence of [`INCIDENT`], and when
+/// `lossless` is given, 1 within its tolerance at its incidences.
+struct Furnace {
+    label: String,
+    bsdf: Arc<dyn Bsdf>,
+    lossless: Option<(f64, &'static [f32])>,
+}
+
+/// What is tested of one BSDF plugin: configurations for the chi-square, weight, reciprocity and
+/// hostile-input tests, and configurations at the energy limit for the furnace.
+struct Plan {
+    cases: Vec<Case>,
+    furnaces: Vec<Furnace>,
+}
+
+/// The standard chi-square test of `sample` against `pdf` at ωo of incidence cos.
+fn standard_chi2(cos: f32) -> Option<Chi2Setup> {
+    Some(Chi2Setup {
+        wo: incident(cos),
+        test: Chi2Test::default(),
+        half_vector: false,
+    })
+}
+
+/// The chi-square setup of a GGX-like lobe of roughness `alpha` at incidence cos.
+fn glossy_chi2(alpha: f32, cos: f32) -> Option<Chi2Setup> {
+    // At grazing incidence the reflected lobe is ~2α·cos θo wide across the plane of
+    // incidence: for α = 1e-2 and below at cos θo = 1e-3 that is under 2e-5 rad, within a few
+    // hundred f32 roundings of a unit vector, so neither the sampled directions nor any
+    // histogram of them resolve it. Those cases are covered by the weight, furnace and
+    // finiteness tests instead.
+    if alpha * cos < 5e-5 {
+        return None;
     }
-    cases
+    let wo = incident(cos);
+    let mut test = Chi2Test::default();
+    if alpha < 0.3 {
+        // Resolve the sharp lobe: bins over a cap about the mirror direction, or at grazing
+        // incidence about the normal in half-vector space.
+        test.axis = if cos >= 0.5 {
+            Vec3::new(-wo.x, -wo.y, wo.z)
+        } else {
+            Vec3::Z
+        };
+        test.cos_cap = (12.0 * alpha as f64).min(std::f64::consts::PI).cos();
+    }
+    Some(Chi2Setup {
+        wo,
+        test,
+        half_vector: cos < 0.5,
+    })
+}
+
+fn case(
+    label: String,
+    bsdf: Arc<dyn Bsdf>,
+    chi2: impl Fn(f32) -> Option<Chi2Setup> + 'static,
+) -> Case {
+    Case {
+        label,
+        bsdf,
+        chi2: Box::new(chi2),
+    }
+}
+
+fn furnace(kind: &str, params: &str, lossless: Option<(f64, &'static [f32])>) -> Furnace {
+    Furnace {
+        label: format!("{kind} {params}"),
+        bsdf: bsdf(kind, params),
+        lossless,
+    }
+}
+
+/// The test plan of the built-in BSDF `name`, or `None` if it has none yet.
+fn plan(name: &str) -> Option<Plan> {
+    let lossless_everywhere: Option<(f64, &'static [f32])> = Some((1e-6, &[1.0, 0.5, 0.1]));
+    Some(match name {
+        "diffuse" => Plan {
+            cases: vec![case(
+                "diffuse".into(),
+                bsdf("diffuse", "\"reflectance\": (0.9, 0.5, 0.1)"),
+                standard_chi2,
+            )],
+            furnaces: vec![furnace(
+                "diffuse",
+                "\"reflectance\": 1",
+                lossless_everywhere,
+            )],
+        },
+        "mirror" => Plan {
+            // A Dirac lobe has no density to histogram against: `chi2` is never applicable;
+            // the weight test checks that its samples are flagged delta with zero eval.
+            cases: vec![case(
+                "mirror".into(),
+                bsdf("mirror", "\"reflectance\": (0.9, 0.5, 0.1)"),
+                |_| None,
+            )],
+            furnaces: vec![furnace("mirror", "\"reflectance\": 1", lossless_everywhere)],
+        },
+        "measured" => Plan {
+            cases: vec![case("measured".into(), measured(), |cos| {
+                // The measured density is piecewise constant over (cos θi, φi − φo) cells: with
+                // ωo at azimuth 0 and 64 × 128 bins per hemisphere the bins align with the
+                // cells, so Simpson's rule integrates each bin exactly.
+                Some(Chi2Setup {
+                    wo: Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos).normalize(),
+                    test: Chi2Test {
+                        theta_bins: 128,
+                        phi_bins: 128,
+                        samples: 2_000_000,
+                        ..Chi2Test::default()
+                    },
+                    half_vector: false,
+                })
+            })],
+            // Tabulated from a glossy BRDF that conserves energy.
+            furnaces: vec![Furnace {
+                label: "measured".into(),
+                bsdf: measured(),
+                lossless: None,
+            }],
+        },
+        "glossy" => {
+            let mut cases = Vec::new();
+            let mut furnaces = Vec::new();
+            for a in ROUGHNESS {
+                for (label, params) in [
+                    (
+                        format!("glossy a={a}"),
+                        format!("\"roughness\": {a}, \"specular\": 0.9"),
+                    ),
+                    (
+                        format!("glossy a={a} +base"),
+                        format!("\"roughness\": {a}, \"diffuse\": 0.5"),
+                    ),
+                ] {
+                    cases.push(case(label, bsdf("glossy", &params), move |cos| {
+                        glossy_chi2(a, cos)
+                    }));
+                }
+                for params in [
+                    format!("\"roughness\": {a}, \"specular\": 1"),
+                    format!("\"roughness\": {a}, \"specular\": 0.04, \"diffuse\": 1"),
+                ] {
+                    furnaces.push(furnace("glossy", &params, None));
+                }
+            }
+            // Smooth and fully reflective glossy is lossless up to its (tiny) masking loss.
+            furnaces.push(furnace(
+                "glossy",
+                "\"roughness\": 0.0001, \"specular\": 1",
+                Some((1e-4, &[1.0])),
+            ));
+            Plan { cases, furnaces }
+        }
+        _ => return None,
+    })
+}
+
+/// The plans of every registered built-in BSDF, by name.
+fn plans() -> Vec<(&'static str, Plan)> {
+    lumis_bsdfs::link();
+    registry::builtin::<BsdfPlugin>()
+        .iter()
+        .map(|p| {
+            let plan = plan(p.name).unwrap_or_else(|| {
+                panic!(
+                    "BSDF `{}` is registered but has no test plan: add its configurations to `plan` in {}",
+                    p.name,
+                    file!()
+                )
+            });
+            (p.name, plan)
+        })
+        .collect()
+}
+
+/// Every case of every registered BSDF.
+fn all_bsdfs() -> Vec<(String, Arc<dyn Bsdf>)> {
+    plans()
+        .into_iter()
+        .flat_map(|(_, plan)| plan.cases)
+        .map(|c| (c.label, c.bsdf))
+        .collect()
+}
+
+#[test]
+fn every_registered_bsdf_has_a_test_plan() {
+    let plans = plans();
+    assert!(plans.len() >= 4, "only {} BSDFs registered", plans.len());
+    for (name, plan) in &plans {
+        assert!(!plan.cases.is_empty(), "{name}: no configurations");
+        assert!(
+            !plan.furnaces.is_empty(),
+            "{name}: no furnace configuration"
+        );
+    }
 }
 
 #[test]
 fn chi_square_sampling_matches_pdf() {
-    let mut cases: Vec<(String, Arc<dyn Bsdf>, Vec3, Chi2Test)> = Vec::new();
-    for cos in INCIDENT {
-        let wo = incident(cos);
-        cases.push((
-            format!("diffuse cos={cos}"),
-            bsdf("diffuse", "\"reflectance\": 0.7"),
-            wo,
-            Chi2Test::default(),
-        ));
-        // The measured density is piecewise constant over (cos θi, φi − φo) cells: with ωo at
-        // azimuth 0 and 64 × 128 bins per hemisphere the bins align with the cells, so Simpson's
-        // rule integrates each bin exactly.
-        let wo_at_zero_azimuth = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos).normalize();
-        cases.push((
-            format!("measured cos={cos}"),
-            measured(),
-            wo_at_zero_azimuth,
-            Chi2Test {
-                theta_bins: 128,
-                phi_bins: 128,
-                samples: 2_000_000,
-                ..Chi2Test::default()
-            },
-        ));
-        for (name, params, alpha) in glossy_cases() {
-            // At grazing incidence the reflected lobe is ~2α·cos θo wide across the plane of
-            // incidence: for α = 1e-2 and below at cos θo = 1e-3 that is under 2e-5 rad, within
-            // a few hundred f32 roundings of a unit vector, so neither the sampled directions nor
-            // any histogram of them resolve it. Those cases are covered by the weight, furnace
-            // and finiteness tests instead.
-            if alpha * cos < 5e-5 {
-                continue;
+    let mut runs = Vec::new();
+    for (_, plan) in plans() {
+        for case in plan.cases {
+            for cos in INCIDENT {
+                if let Some(setup) = (case.chi2)(cos) {
+                    runs.push((
+                        format!("{} cos={cos}", case.label),
+                        case.bsdf.clone(),
+                        setup,
+                    ));
+                }
             }
-            let mut test = Chi2Test::default();
-            if alpha < 0.3 {
-                // Resolve the sharp lobe: bins over a cap about the mirror direction, or at
-                // grazing incidence about the normal in half-vector space (below).
-                test.axis = if cos >= 0.5 {
-                    Vec3::new(-wo.x, -wo.y, wo.z)
-                } else {
-                    Vec3::Z
-                };
-                test.cos_cap = (12.0 * alpha as f64).min(std::f64::consts::PI).cos();
-            }
-            cases.push((
-                format!("{name} cos={cos}"),
-                bsdf("glossy", &params),
-                wo,
-                test,
-            ));
         }
     }
-    let alpha = sidak(0.01, cases.len());
-    for (name, b, wo, test) in &cases {
-        let outcome = if wo.z < 0.5 && name.starts_with("glossy") {
-            half_vector_chi2(b.as_ref(), *wo, test)
+    let alpha = sidak(0.01, runs.len());
+    for (name, b, setup) in &runs {
+        let outcome = if setup.half_vector {
+            half_vector_chi2(b.as_ref(), setup.wo, &setup.test)
         } else {
-            test_bsdf(b.as_ref(), *wo, test)
+            test_bsdf(b.as_ref(), setup.wo, &setup.test)
         };
         outcome.assert_passes(alpha, name);
     }
@@ -159,24 +322,6 @@ fn half_vector_chi2(b: &dyn Bsdf, wo: Vec3, test: &Chi2Test) -> lumis_core::chi2
 
 fn reflect(wo: Vec3, h: Vec3) -> Vec3 {
     (2.0 * wo.dot(h) * h - wo).normalize()
-}
-
-fn all_bsdfs() -> Vec<(String, Arc<dyn Bsdf>)> {
-    let mut v = vec![
-        (
-            "diffuse".to_string(),
-            bsdf("diffuse", "\"reflectance\": (0.9, 0.5, 0.1)"),
-        ),
-        (
-            "mirror".to_string(),
-            bsdf("mirror", "\"reflectance\": (0.9, 0.5, 0.1)"),
-        ),
-        ("measured".to_string(), measured()),
-    ];
-    for (name, params, _) in glossy_cases() {
-        v.push((name, bsdf("glossy", &params)));
-    }
-    v
 }
 
 #[test]
@@ -236,44 +381,28 @@ fn albedo(b: &dyn Bsdf, wo: Vec3, n: usize) -> (f64, f64) {
 
 #[test]
 fn white_furnace_albedo_is_at_most_one_and_one_when_lossless() {
-    let lossless = [
-        bsdf("diffuse", "\"reflectance\": 1"),
-        bsdf("mirror", "\"reflectance\": 1"),
-    ];
-    for b in &lossless {
-        for cos in [1.0, 0.5, 0.1] {
-            let (a, se) = albedo(b.as_ref(), incident(cos), 100_000);
-            assert!(
-                (a - 1.0).abs() <= 4.0 * se + 1e-6,
-                "lossless albedo {a} ± {se}"
-            );
-        }
-    }
-    for a in ROUGHNESS {
-        for params in [
-            format!("\"roughness\": {a}, \"specular\": 1"),
-            format!("\"roughness\": {a}, \"specular\": 0.04, \"diffuse\": 1"),
-        ] {
-            let b = bsdf("glossy", &params);
+    for (_, plan) in plans() {
+        for f in plan.furnaces {
             for cos in INCIDENT {
-                let (albedo, se) = albedo(b.as_ref(), incident(cos), 100_000);
+                let (albedo, se) = albedo(f.bsdf.as_ref(), incident(cos), 100_000);
                 assert!(
                     albedo <= 1.0 + 4.0 * se,
-                    "glossy {params} cos={cos}: albedo {albedo} ± {se}"
+                    "{} cos={cos}: albedo {albedo} ± {se}",
+                    f.label
                 );
+            }
+            if let Some((tolerance, incidences)) = f.lossless {
+                for &cos in incidences {
+                    let (albedo, se) = albedo(f.bsdf.as_ref(), incident(cos), 100_000);
+                    assert!(
+                        (albedo - 1.0).abs() <= 4.0 * se + tolerance,
+                        "{} cos={cos}: lossless albedo {albedo} ± {se}",
+                        f.label
+                    );
+                }
             }
         }
     }
-    // Smooth and fully reflective glossy is lossless up to its (tiny) masking loss.
-    let (a, se) = albedo(
-        bsdf("glossy", "\"roughness\": 0.0001, \"specular\": 1").as_ref(),
-        incident(1.0),
-        100_000,
-    );
-    assert!(
-        (a - 1.0).abs() <= 4.0 * se + 1e-4,
-        "smooth glossy albedo {a} ± {se}"
-    );
 }
 
 #[test]

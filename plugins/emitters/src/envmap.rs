@@ -4,13 +4,30 @@
 //! - `file` (path, required): an equirectangular (latitude–longitude) RGB OpenEXR image.
 //! - `scale` (float, default 1): multiplies the radiance.
 //! - `rotation` (float, default 0, degrees): turns the map about the y (up) axis.
+//! - `interpolation` (choice, default `nearest`, or `bilinear`): how radiance varies between
+//!   pixels (below).
+//! - `orientation` (choice, default `lumis`, or `mitsuba`): which way the map faces (below).
 //!
-//! Mapping: the top row is straight up (+y), the bottom row straight down; the image's centre
-//! column looks toward −z, its left edge toward +z and its first quarter toward −x: a direction
-//! d = (sin θ sin φ, cos θ, −sin θ cos φ) has u = (φ + π) / 2π, v = θ / π. Each pixel is a cell
-//! of constant radiance: `eval` reads the pixel a direction falls in, and sampling picks pixels
-//! from a 2D piecewise-constant distribution proportional to luminance × sin θ, so `pdf` is the
-//! density of exactly that choice: p(u, v) / (2π² sin θ).
+//! Mapping (`orientation: "lumis"`): the top row is straight up (+y), the bottom row straight
+//! down; the image's centre column looks toward −z, its left edge toward +z and its first quarter
+//! toward −x: a direction d = (sin θ sin φ, cos θ, −sin θ cos φ) has u = (φ + π) / 2π, v = θ / π.
+//! `orientation: "mitsuba"` turns the map by 180° about y, as Mitsuba 3 places it (centre column
+//! toward +z, first quarter toward +x): the same as adding 180 to `rotation`.
+//!
+//! `interpolation: "nearest"`: each pixel is a cell of constant radiance, pixel (i, j) spanning
+//! u ∈ [i, i + 1]/W and θ ∈ π·[j, j + 1]/H. Sampling picks cells from a 2D piecewise-constant
+//! distribution proportional to luminance × sin θ (at the row's centre), so `pdf` is the density
+//! of exactly that choice: p(u, v) / (2π² sin θ).
+//!
+//! `interpolation: "bilinear"` (Mitsuba 3's placement): pixel (i, j) is a sample at
+//! u = (i + ½)/W (wrapping around at the seam) and θ = π·j/(H − 1), so the first and last rows
+//! sit on the poles, and radiance is interpolated bilinearly between the four surrounding
+//! samples. Sampling is a piecewise-bilinear warp: the weights w = luminance × sin θ at the
+//! samples, interpolated bilinearly, are the density in (u, v); a patch between four samples is
+//! chosen by its integral (the mean of its corners), then a point inside it by inverting the
+//! bilinear density's marginal and conditional (both linear) in closed form. `pdf` is that
+//! density exactly, w(u, v) / ∫w / (2π² sin θ), the same as Mitsuba's `envmap` samples with.
+//! The map must then be at least 2 pixels high.
 //!
 //! Pixels that are not valid radiance — negative (lossy compression leaves small negative
 //! values) or not finite — are read as zero in that channel.
@@ -24,54 +41,182 @@ use lumis_core::registry::EmitterPlugin;
 use std::f32::consts::{PI, TAU};
 use std::sync::Arc;
 
+/// How radiance varies between the pixels of the map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interpolation {
+    /// One constant radiance per pixel.
+    Nearest,
+    /// Bilinear between samples at the pixels' centres in u and on the poles' rows in θ.
+    Bilinear,
+}
+
+/// Which way the map faces (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Orientation {
+    /// Centre column toward −z.
+    Lumis,
+    /// Centre column toward +z, as Mitsuba 3.
+    Mitsuba,
+}
+
+/// How a map is placed and read.
+#[derive(Clone, Copy, Debug)]
+pub struct MapSettings {
+    pub scale: f32,
+    /// About +y, in degrees.
+    pub rotation_degrees: f32,
+    pub interpolation: Interpolation,
+    pub orientation: Orientation,
+}
+
+impl Default for MapSettings {
+    fn default() -> Self {
+        MapSettings {
+            scale: 1.0,
+            rotation_degrees: 0.0,
+            interpolation: Interpolation::Nearest,
+            orientation: Orientation::Lumis,
+        }
+    }
+}
+
 pub struct EnvironmentMap {
     width: usize,
     height: usize,
     pixels: Vec<Rgb>,
-    /// Over (u, v); `None` for a black map, which then is never sampled.
-    distribution: Option<Distribution2D>,
-    /// Rotation about +y, as (cos, sin).
+    sampling: Sampling,
+    /// Rotation about +y (with the orientation's half turn), as (cos, sin).
     rotation: (f32, f32),
 }
 
+/// The tables that sampling and `pdf` read; `None` for a black map, which then is never sampled.
+enum Sampling {
+    /// Over (u, v), one cell per pixel.
+    Nearest(Option<Distribution2D>),
+    Bilinear(Option<BilinearWarp>),
+}
+
+/// The piecewise-bilinear density over the W × (H − 1) patches between pixel samples.
+struct BilinearWarp {
+    /// luminance × sin θ at each pixel's sample, row-major.
+    weights: Vec<f32>,
+    /// Patches by their integrals: patch (i, j) has corners (i, j), (i + 1 mod W, j),
+    /// (i, j + 1), (i + 1 mod W, j + 1).
+    patches: Distribution2D,
+    /// ∫ over [0, 1]² of the interpolated weights.
+    integral: f32,
+}
+
+/// Where a point of the map falls between pixel samples (bilinear placement).
+struct Corners {
+    /// Indices of the samples (i0, j0), (i1, j0), (i0, j1), (i1, j1).
+    index: [usize; 4],
+    /// Position between them, in [0, 1]².
+    fx: f32,
+    fy: f32,
+}
+
+impl Corners {
+    fn lerp<T>(&self, value: impl Fn(usize) -> T) -> T
+    where
+        T: std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
+        let [a, b, c, d] = self.index.map(value);
+        let (fx, fy) = (self.fx, self.fy);
+        (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+    }
+}
+
+/// Inverts the CDF of the density on [0, 1] proportional to (1 − x)·a + x·b (a, b ≥ 0, not
+/// both 0), in the form that keeps its precision when a ≈ b.
+fn sample_linear(u: f32, a: f32, b: f32) -> f32 {
+    if u <= 0.0 {
+        return 0.0;
+    }
+    let x = u * (a + b) / (a + ((1.0 - u) * a * a + u * b * b).sqrt());
+    x.clamp(0.0, 1.0 - f32::EPSILON / 2.0)
+}
+
 impl EnvironmentMap {
-    /// Builds the map from linear RGB pixels (row-major, top row first), replacing values that
-    /// are not valid radiance by zero.
+    /// Builds a nearest-interpolated map in lumis' orientation from linear RGB pixels
+    /// (row-major, top row first), replacing values that are not valid radiance by zero.
     pub fn new(
         width: usize,
         height: usize,
-        mut pixels: Vec<Rgb>,
+        pixels: Vec<Rgb>,
         scale: f32,
         rotation_degrees: f32,
     ) -> Self {
+        let settings = MapSettings {
+            scale,
+            rotation_degrees,
+            ..MapSettings::default()
+        };
+        Self::with_settings(width, height, pixels, &settings)
+            .expect("a nearest-interpolated map of any size is valid")
+    }
+
+    /// Builds a map with any settings; fails for a bilinear map less than 2 pixels high, or
+    /// pixels that do not fill width × height.
+    pub fn with_settings(
+        width: usize,
+        height: usize,
+        mut pixels: Vec<Rgb>,
+        settings: &MapSettings,
+    ) -> Result<Self, String> {
+        if width == 0 || height == 0 || pixels.len() != width * height {
+            return Err(format!(
+                "{} pixels do not make a {width}x{height} map",
+                pixels.len()
+            ));
+        }
         for p in &mut pixels {
             *p = Rgb::from(p.to_array().map(|c| {
                 if c.is_finite() && c > 0.0 {
-                    c * scale
+                    c * settings.scale
                 } else {
                     0.0
                 }
             }));
         }
-        let weights: Vec<f32> = (0..height)
-            .flat_map(|y| {
-                let sin_theta = (PI * (y as f32 + 0.5) / height as f32).sin();
-                let pixels = &pixels;
-                (0..width).map(move |x| luminance(pixels[y * width + x]) * sin_theta)
-            })
-            .collect();
-        let distribution = Distribution2D::new(&weights, width, height);
-        let (sin, cos) = rotation_degrees.to_radians().sin_cos();
-        EnvironmentMap {
+        let sampling = match settings.interpolation {
+            Interpolation::Nearest => {
+                let weights: Vec<f32> = (0..height)
+                    .flat_map(|y| {
+                        let sin_theta = (PI * (y as f32 + 0.5) / height as f32).sin();
+                        let pixels = &pixels;
+                        (0..width).map(move |x| luminance(pixels[y * width + x]) * sin_theta)
+                    })
+                    .collect();
+                Sampling::Nearest(Distribution2D::new(&weights, width, height))
+            }
+            Interpolation::Bilinear => {
+                if height < 2 {
+                    return Err(format!(
+                        "bilinear interpolation needs a map at least 2 pixels high (its first \
+                         and last rows sit on the poles); this one is {width}x{height}"
+                    ));
+                }
+                Sampling::Bilinear(BilinearWarp::new(&pixels, width, height))
+            }
+        };
+        let (sin, cos) = settings.rotation_degrees.to_radians().sin_cos();
+        // Mitsuba's orientation is a half turn more: exactly (−cos, −sin).
+        let rotation = match settings.orientation {
+            Orientation::Lumis => (cos, sin),
+            Orientation::Mitsuba => (-cos, -sin),
+        };
+        Ok(EnvironmentMap {
             width,
             height,
             pixels,
-            distribution,
-            rotation: (cos, sin),
-        }
+            sampling,
+            rotation,
+        })
     }
 
     /// World direction to map coordinates (u, v) in [0, 1]², and sin θ.
+    #[inline]
     fn to_uv(&self, d: Vec3) -> (Vec2, f32) {
         let (c, s) = self.rotation;
         // Undo the rotation about +y.
@@ -86,48 +231,153 @@ impl EnvironmentMap {
         )
     }
 
-    /// Map coordinates to a world direction, and sin θ.
-    fn to_direction(&self, uv: Vec2) -> (Vec3, f32) {
+    /// Map coordinates to a world direction.
+    #[inline]
+    fn to_direction(&self, uv: Vec2) -> Vec3 {
         let phi = uv.x * TAU - PI;
         let theta = uv.y * PI;
         let (sin_theta, cos_theta) = theta.sin_cos();
         let local = Vec3::new(sin_theta * phi.sin(), cos_theta, -sin_theta * phi.cos());
         let (c, s) = self.rotation;
-        (
-            Vec3::new(
-                c * local.x + s * local.z,
-                local.y,
-                -s * local.x + c * local.z,
-            ),
-            sin_theta,
+        Vec3::new(
+            c * local.x + s * local.z,
+            local.y,
+            -s * local.x + c * local.z,
         )
     }
 
     /// Solid-angle density of the direction at map coordinates `uv`.
-    fn pdf_at(distribution: &Distribution2D, uv: Vec2, sin_theta: f32) -> f32 {
+    #[inline]
+    fn pdf_at(&self, uv: Vec2, sin_theta: f32) -> f32 {
         if sin_theta <= 0.0 {
             return 0.0;
         }
-        let pdf = distribution.pdf(uv) / (2.0 * PI * PI * sin_theta);
-        if pdf.is_finite() { pdf } else { 0.0 }
+        let pdf_uv = match &self.sampling {
+            Sampling::Nearest(Some(d)) => d.pdf(uv),
+            Sampling::Bilinear(Some(warp)) => self.bilinear_pdf_uv(warp, uv),
+            Sampling::Nearest(None) | Sampling::Bilinear(None) => return 0.0,
+        };
+        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
+        if pdf.is_finite() { pdf.max(0.0) } else { 0.0 }
     }
 
+    /// The four pixel samples around map coordinates `uv` (bilinear placement).
+    #[inline]
+    fn corners(&self, uv: Vec2) -> Corners {
+        let (w, h) = (self.width, self.height);
+        // Sample i sits at x = i; the seam wraps x in [−½, 0) to the last column.
+        let mut x = uv.x * w as f32 - 0.5;
+        if x < 0.0 {
+            x += w as f32;
+        }
+        let i0 = (x as usize).min(w - 1);
+        let i1 = if i0 + 1 == w { 0 } else { i0 + 1 };
+        let y = uv.y * (h - 1) as f32;
+        let j0 = (y as usize).min(h - 2);
+        Corners {
+            index: [
+                j0 * w + i0,
+                j0 * w + i1,
+                (j0 + 1) * w + i0,
+                (j0 + 1) * w + i1,
+            ],
+            fx: (x - i0 as f32).clamp(0.0, 1.0),
+            fy: (y - j0 as f32).clamp(0.0, 1.0),
+        }
+    }
+
+    #[inline]
     fn lookup(&self, uv: Vec2) -> Rgb {
-        let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
-        let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
-        self.pixels[y * self.width + x]
+        match self.sampling {
+            Sampling::Nearest(_) => {
+                let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
+                let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
+                self.pixels[y * self.width + x]
+            }
+            Sampling::Bilinear(_) => self.bilinear_lookup(uv),
+        }
+    }
+
+    /// Map coordinates of a sample drawn with `u`, or `None` for a black map.
+    #[inline]
+    fn sample_uv(&self, u: Vec2) -> Option<Vec2> {
+        match &self.sampling {
+            Sampling::Nearest(d) => Some(d.as_ref()?.sample(u).0),
+            Sampling::Bilinear(warp) => Some(self.bilinear_sample_uv(warp.as_ref()?, u)),
+        }
+    }
+
+    // The bilinear paths stay out of line, so that the nearest ones keep their size.
+
+    #[inline(never)]
+    fn bilinear_pdf_uv(&self, warp: &BilinearWarp, uv: Vec2) -> f32 {
+        self.corners(uv).lerp(|i| warp.weights[i]) / warp.integral
+    }
+
+    #[inline(never)]
+    fn bilinear_lookup(&self, uv: Vec2) -> Rgb {
+        self.corners(uv).lerp(|i| self.pixels[i])
+    }
+
+    #[inline(never)]
+    fn bilinear_sample_uv(&self, warp: &BilinearWarp, u: Vec2) -> Vec2 {
+        let (col, row, within, _) = warp.patches.sample_cell(u);
+        let (w, h) = (self.width, self.height);
+        let col1 = if col + 1 == w { 0 } else { col + 1 };
+        let weight = |i: usize, j: usize| warp.weights[j * w + i];
+        let (w00, w10) = (weight(col, row), weight(col1, row));
+        let (w01, w11) = (weight(col, row + 1), weight(col1, row + 1));
+        // The marginal in y is linear, then the conditional in x given y.
+        let fy = sample_linear(within.y, w00 + w10, w01 + w11);
+        let fx = sample_linear(
+            within.x,
+            w00 * (1.0 - fy) + w01 * fy,
+            w10 * (1.0 - fy) + w11 * fy,
+        );
+        let mut x = (col as f32 + fx + 0.5) / w as f32;
+        if x >= 1.0 {
+            x -= 1.0;
+        }
+        Vec2::new(x, (row as f32 + fy) / (h - 1) as f32)
+    }
+}
+
+impl BilinearWarp {
+    fn new(pixels: &[Rgb], width: usize, height: usize) -> Option<Self> {
+        let weights: Vec<f32> = (0..height)
+            .flat_map(|y| {
+                let sin_theta = (PI * y as f32 / (height - 1) as f32).sin().max(0.0);
+                (0..width).map(move |x| luminance(pixels[y * width + x]) * sin_theta)
+            })
+            .collect();
+        let patch_weights: Vec<f32> = (0..height - 1)
+            .flat_map(|j| {
+                let weights = &weights;
+                (0..width).map(move |i| {
+                    let i1 = (i + 1) % width;
+                    let row = |j: usize| weights[j * width + i] + weights[j * width + i1];
+                    0.25 * (row(j) + row(j + 1))
+                })
+            })
+            .collect();
+        let integral =
+            patch_weights.iter().map(|&w| w as f64).sum::<f64>() / patch_weights.len() as f64;
+        let patches = Distribution2D::new(&patch_weights, width, height - 1)?;
+        Some(BilinearWarp {
+            weights,
+            patches,
+            integral: integral as f32,
+        })
     }
 }
 
 impl Emitter for EnvironmentMap {
     fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let distribution = self.distribution.as_ref()?;
-        let (uv, _) = distribution.sample(u);
-        let (wi, _) = self.to_direction(uv);
+        let wi = self.to_direction(self.sample_uv(u)?);
         // Radiance and density are those of the direction as `eval` and `pdf_direction` see it
         // (on a pixel's edge, rounding can move it into the neighbour), from one conversion.
         let (uv, sin_theta) = self.to_uv(wi);
-        let pdf = Self::pdf_at(distribution, uv, sin_theta);
+        let pdf = self.pdf_at(uv, sin_theta);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -140,11 +390,8 @@ impl Emitter for EnvironmentMap {
     }
 
     fn pdf_direction(&self, _: &ReferencePoint, wi: Vec3, _: Option<&EmitterHit>) -> f32 {
-        let Some(d) = &self.distribution else {
-            return 0.0;
-        };
         let (uv, sin_theta) = self.to_uv(wi);
-        Self::pdf_at(d, uv, sin_theta)
+        self.pdf_at(uv, sin_theta)
     }
 
     fn eval(&self, wi: Vec3, _: Option<&EmitterHit>) -> Rgb {
@@ -178,13 +425,41 @@ static PARAMS: &[ParamSpec] = &[
         unit: "degrees",
         description: "rotation of the map about the up (y) axis",
     },
+    ParamSpec {
+        name: "interpolation",
+        kind: ParamKind::Choice {
+            options: &["nearest", "bilinear"],
+            default: "nearest",
+        },
+        unit: "",
+        description: "nearest: constant radiance per pixel; bilinear: between samples at pixel centres in u and on the poles' rows in θ (Mitsuba 3's placement), sampled by a piecewise-bilinear warp",
+    },
+    ParamSpec {
+        name: "orientation",
+        kind: ParamKind::Choice {
+            options: &["lumis", "mitsuba"],
+            default: "lumis",
+        },
+        unit: "",
+        description: "lumis: the map's centre column looks toward −z; mitsuba: toward +z, as Mitsuba 3 (a half turn about y)",
+    },
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
     crate::not_on_a_shape(context, "envmap")?;
     let path = params.path("file")?;
-    let scale = params.float("scale")?;
-    let rotation = params.float("rotation")?;
+    let settings = MapSettings {
+        scale: params.float("scale")?,
+        rotation_degrees: params.float("rotation")?,
+        interpolation: match params.choice("interpolation")? {
+            "bilinear" => Interpolation::Bilinear,
+            _ => Interpolation::Nearest,
+        },
+        orientation: match params.choice("orientation")? {
+            "mitsuba" => Orientation::Mitsuba,
+            _ => Orientation::Lumis,
+        },
+    };
     let image = read_exr_rgb(&path)
         .map_err(|e| PluginError::Invalid(format!("{}: {e}", params.plugin())))?;
     if image.width == 0 || image.height == 0 {
@@ -194,19 +469,17 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
             path.display()
         )));
     }
-    Ok(Arc::new(EnvironmentMap::new(
-        image.width,
-        image.height,
-        image.pixels,
-        scale,
-        rotation,
-    )))
+    let map = EnvironmentMap::with_settings(image.width, image.height, image.pixels, &settings)
+        .map_err(|e| {
+            PluginError::Invalid(format!("{}: `{}`: {e}", params.plugin(), path.display()))
+        })?;
+    Ok(Arc::new(map))
 }
 
 inventory::submit! {
     EmitterPlugin {
         name: "envmap",
-        description: "equirectangular environment map, importance sampled by luminance × sin θ",
+        description: "equirectangular environment map (nearest or bilinear), importance sampled by luminance × sin θ",
         params: PARAMS,
         create,
     }
@@ -231,7 +504,7 @@ mod tests {
                 Vec2::new(0.25, 1e-5),
                 Vec2::new(0.75, 1.0 - 1e-5),
             ] {
-                let (d, _) = m.to_direction(uv);
+                let d = m.to_direction(uv);
                 assert!((d.length() - 1.0).abs() < 1e-5);
                 let (back, _) = m.to_uv(d);
                 // At the poles u is undefined; elsewhere u wraps at the seam.
@@ -254,29 +527,38 @@ mod tests {
         let m = map(0.0);
         assert!(
             m.to_direction(Vec2::new(0.5, 0.5))
-                .0
                 .abs_diff_eq(-Vec3::Z, 1e-6)
         );
         assert!(
             m.to_direction(Vec2::new(0.0, 0.5))
-                .0
                 .abs_diff_eq(Vec3::Z, 1e-6)
         );
         assert!(
             m.to_direction(Vec2::new(0.25, 0.5))
-                .0
                 .abs_diff_eq(-Vec3::X, 1e-6)
         );
         assert!(
             m.to_direction(Vec2::new(0.3, 0.0))
-                .0
                 .abs_diff_eq(Vec3::Y, 1e-6)
+        );
+        // Mitsuba's orientation: centre toward +z, first quarter toward +x.
+        let settings = MapSettings {
+            orientation: Orientation::Mitsuba,
+            ..MapSettings::default()
+        };
+        let mi = EnvironmentMap::with_settings(8, 4, vec![Rgb::ONE; 32], &settings).unwrap();
+        assert!(
+            mi.to_direction(Vec2::new(0.5, 0.5))
+                .abs_diff_eq(Vec3::Z, 1e-6)
+        );
+        assert!(
+            mi.to_direction(Vec2::new(0.25, 0.5))
+                .abs_diff_eq(Vec3::X, 1e-6)
         );
         // Rotating by 90 degrees about +y carries the centre (-z) to -x.
         let r = map(90.0);
         assert!(
             r.to_direction(Vec2::new(0.5, 0.5))
-                .0
                 .abs_diff_eq(-Vec3::X, 1e-6)
         );
     }

@@ -21,25 +21,43 @@
 //! balance weights use these realised counts, so each phase is unbiased for any α̂ chosen from
 //! samples it does not reuse.
 
-use crate::estimator::Heuristic;
-use crate::mis::{self, Strategy};
+use crate::allocation::{Allocation, FixedAlpha, LightEstimate, LightSampling, SampleSplit};
+use crate::balance::Balance;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::phase::{Observer, Phase, PhaseRole};
+use crate::weighting::{PerSample, Weighting};
 use lumis_core::integrator::Integrator;
+use lumis_core::math::{Rgb, luminance};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
+/// The plugin's name in scene files.
+pub const NAME: &str = "alpha";
+/// Parameter: how α is obtained, one of [`INTEGRATED`], [`PREPROCESSED`], [`FIXED`].
+pub const MODE: &str = "mode";
+pub const INTEGRATED: &str = "integrated";
+pub const PREPROCESSED: &str = "preprocessed";
+pub const FIXED: &str = "fixed";
+/// Parameter: M, the samples at α = ½ that estimate α̂.
+pub const ALPHA_SAMPLES: &str = "alpha_samples";
+/// Parameter: the interval α̂ is clamped to.
+pub const CLAMP: &str = "clamp";
+/// Parameter: α in [`FIXED`] mode (its name is the mode's).
+pub const FIXED_ALPHA: &str = FIXED;
+
 static PARAMS: &[ParamSpec] = &[
-    mis::SAMPLES,
+    SAMPLES_SPEC,
     ParamSpec {
-        name: "mode",
+        name: MODE,
         kind: ParamKind::Choice {
-            options: &["integrated", "preprocessed", "fixed"],
-            default: "integrated",
+            options: &[INTEGRATED, PREPROCESSED, FIXED],
+            default: INTEGRATED,
         },
         unit: "",
         description: "how α is obtained: integrated (paper Table 2), preprocessed (Table 1) or fixed",
     },
     ParamSpec {
-        name: "alpha_samples",
+        name: ALPHA_SAMPLES,
         kind: ParamKind::Int {
             default: Some(0),
             min: 0,
@@ -49,7 +67,7 @@ static PARAMS: &[ParamSpec] = &[
         description: "M, samples at α = ½ that estimate α (0: N/2 integrated, 4096 preprocessed)",
     },
     ParamSpec {
-        name: "clamp",
+        name: CLAMP,
         kind: ParamKind::Interval {
             default: [0.025, 0.975],
             min: 0.0,
@@ -59,7 +77,7 @@ static PARAMS: &[ParamSpec] = &[
         description: "interval α̂ is clamped to",
     },
     ParamSpec {
-        name: "fixed",
+        name: FIXED_ALPHA,
         kind: ParamKind::Float {
             default: Some(0.5),
             min: 0.0,
@@ -68,48 +86,247 @@ static PARAMS: &[ParamSpec] = &[
         unit: "",
         description: "α in fixed mode",
     },
-    mis::AOVS,
+    AOVS_SPEC,
 ];
 
-fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let strategy = match params.choice("mode")? {
-        "fixed" => Strategy::Fixed {
-            alpha: params.float("fixed")? as f64,
-            heuristic: Heuristic::Balance,
-        },
-        mode => {
-            let n = params.int("samples")? as u32;
-            let given = params.int("alpha_samples")? as u32;
-            let [lo, hi] = params.interval("clamp")?;
-            let clamp = [lo as f64, hi as f64];
-            if mode == "integrated" {
-                let alpha_samples = if given == 0 { n / 2 } else { given };
-                if alpha_samples > n {
-                    return Err(PluginError::Invalid(format!(
-                        "{}: `alpha_samples` ({alpha_samples}) cannot exceed `samples` ({n}) in integrated mode",
-                        params.plugin()
-                    )));
-                }
-                Strategy::Integrated {
-                    alpha_samples,
-                    clamp,
-                }
+/// The paper's sums over samples drawn at α = ½ (a stratified sample of p̄): M·Î₁ = Σ f²Δp/p̄³
+/// and M·Î₂ = Σ f²Δp²/p̄⁴, with f the luminance of the integrand, in f64. Samples with f = 0 or
+/// p̄ not a positive finite number add nothing. A Dirac BSDF sample (p_B → ∞) adds the limit of
+/// both terms, 4 (f/p_B)², which gives the supplemental's α = 3/4 for mirrors.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SecondOrderMoments {
+    pub i1: f64,
+    pub i2: f64,
+}
+
+impl SecondOrderMoments {
+    /// Adds one sample of scalar integrand `f` and densities `p_bsdf`, `p_light`.
+    pub fn add(&mut self, f: f32, p_bsdf: f32, p_light: f32) {
+        let (f, p_b, p_l) = (f as f64, p_bsdf as f64, p_light as f64);
+        let p_bar = 0.5 * (p_b + p_l);
+        if f == 0.0 || p_bar.is_nan() || p_bar <= 0.0 || !p_bar.is_finite() {
+            return;
+        }
+        let delta_p = 0.5 * (p_b - p_l);
+        let f2 = f * f;
+        self.i1 += f2 * delta_p / (p_bar * p_bar * p_bar);
+        self.i2 += f2 * delta_p * delta_p / (p_bar * p_bar * p_bar * p_bar);
+    }
+
+    /// Adds one Dirac BSDF sample whose f / p_B is `weight` (luminance).
+    pub fn add_dirac(&mut self, weight: f32) {
+        let w = weight as f64;
+        self.i1 += 4.0 * w * w;
+        self.i2 += 4.0 * w * w;
+    }
+
+    /// α̂ = ½ + ¼ · Î₁/Î₂ clamped to `clamp`, or ½ when Î₂ is zero or not finite (no sample saw
+    /// the light, or p_B = p_L everywhere).
+    pub fn alpha(&self, clamp: [f64; 2]) -> f64 {
+        second_order_alpha(self.i1, self.i2)
+            .unwrap_or(0.5)
+            .clamp(clamp[0], clamp[1])
+    }
+}
+
+impl Observer for SecondOrderMoments {
+    fn observe(&mut self, phase: &Phase, _contributions: &[Rgb]) {
+        for r in phase.records.iter().filter(|r| !r.is_black()) {
+            if r.delta {
+                self.add_dirac(luminance(r.f));
             } else {
-                Strategy::Preprocessed {
-                    alpha_samples: if given == 0 { 4096 } else { given },
-                    clamp,
+                self.add(luminance(r.f), r.p_bsdf, r.p_light);
+            }
+        }
+    }
+}
+
+/// The unclamped second-order α from the sums of [`SecondOrderMoments`]: ½ + ¼ · I₁ / I₂, or
+/// `None` when I₂ is zero or not finite.
+pub fn second_order_alpha(i1: f64, i2: f64) -> Option<f64> {
+    let ratio = i1 / i2;
+    (i2 > 0.0 && i2.is_finite() && ratio.is_finite()).then_some(0.5 + 0.25 * ratio)
+}
+
+/// Where α̂ comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Per shading point and light: M samples at α = ½ give L̂₁ and α̂, the other N − M samples
+    /// at α̂ give L̂₂; the estimate is (M·L̂₁ + (N − M)·L̂₂) / N (paper, Table 2). Unbiased: α̂
+    /// depends only on the first phase, and each phase is an unbiased estimate for its counts.
+    Integrated { alpha_samples: u32 },
+    /// Per shading point and light: M pilot samples at α = ½ give α̂ only; N fresh samples at
+    /// α̂ give the estimate (paper, Table 1).
+    Preprocessed { alpha_samples: u32 },
+}
+
+/// The paper's allocation: α̂ from a phase at α = ½.
+pub struct SecondOrderAlpha {
+    pub mode: Mode,
+    pub clamp: [f64; 2],
+}
+
+impl Allocation for SecondOrderAlpha {
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate {
+        let n = sampling.samples();
+        let mut moments = SecondOrderMoments::default();
+        match self.mode {
+            Mode::Integrated { alpha_samples } => {
+                let m = alpha_samples.min(n);
+                let rest = n - m;
+                // V[L_1] is measured on the samples at α̂, unless fewer than two are left.
+                let first_role = PhaseRole {
+                    counted: true,
+                    measured: rest < 2,
+                };
+                let first = sampling.phase(
+                    SampleSplit::new(0.5, m),
+                    first_role,
+                    weighting,
+                    &mut moments,
+                );
+                let alpha = moments.alpha(self.clamp);
+                if rest == 0 {
+                    return LightEstimate {
+                        value: first,
+                        alpha,
+                    };
                 }
+                let second_role = PhaseRole {
+                    counted: true,
+                    measured: rest >= 2,
+                };
+                let second = sampling.phase(
+                    SampleSplit::new(alpha, rest),
+                    second_role,
+                    weighting,
+                    &mut (),
+                );
+                LightEstimate {
+                    value: (first * m as f32 + second * rest as f32) / n as f32,
+                    alpha,
+                }
+            }
+            Mode::Preprocessed { alpha_samples } => {
+                sampling.phase(
+                    SampleSplit::new(0.5, alpha_samples),
+                    PhaseRole::PILOT,
+                    weighting,
+                    &mut moments,
+                );
+                let alpha = moments.alpha(self.clamp);
+                let value = sampling.phase(
+                    SampleSplit::new(alpha, n),
+                    PhaseRole::ESTIMATE,
+                    weighting,
+                    &mut (),
+                );
+                LightEstimate { value, alpha }
+            }
+        }
+    }
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let balance = PerSample(Balance);
+    let mode = match params.choice(MODE)? {
+        FIXED => {
+            let alpha = params.float(FIXED_ALPHA)? as f64;
+            return MisIntegrator::boxed(params, FixedAlpha { alpha }, balance);
+        }
+        INTEGRATED => {
+            let n = params.int(SAMPLES_SPEC.name)? as u32;
+            let given = params.int(ALPHA_SAMPLES)? as u32;
+            let alpha_samples = if given == 0 { n / 2 } else { given };
+            if alpha_samples > n {
+                return Err(PluginError::Invalid(format!(
+                    "{}: `{ALPHA_SAMPLES}` ({alpha_samples}) cannot exceed `{}` ({n}) in integrated mode",
+                    params.plugin(),
+                    SAMPLES_SPEC.name
+                )));
+            }
+            Mode::Integrated { alpha_samples }
+        }
+        _ => {
+            let given = params.int(ALPHA_SAMPLES)? as u32;
+            Mode::Preprocessed {
+                alpha_samples: if given == 0 { 4096 } else { given },
             }
         }
     };
-    Ok(Box::new(mis::create(params, strategy)?))
+    let [lo, hi] = params.interval(CLAMP)?;
+    let clamp = [lo as f64, hi as f64];
+    MisIntegrator::boxed(params, SecondOrderAlpha { mode, clamp }, balance)
 }
 
 inventory::submit! {
     IntegratorPlugin {
-        name: "alpha",
+        name: NAME,
         description: "direct lighting with the second-order adaptive α between BSDF and light sampling (Lu et al. 2013)",
         params: PARAMS,
         create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The moments of a synthetic integrand on [0, 1]: the concentrated density is a box of
+    /// height k (width 1/k), the other is 1, and f follows the concentrated one. Half the
+    /// samples come from each density (a stratified sample of p̄), as at α = ½.
+    fn synthetic_moments(k: f32, concentrated_is_bsdf: bool) -> SecondOrderMoments {
+        let mut moments = SecondOrderMoments::default();
+        let n = 20_000;
+        for i in 0..n {
+            let u = (i as f32 + 0.5) / n as f32;
+            for x in [u / k, u] {
+                let p = if x < 1.0 / k { k } else { 0.0 };
+                if concentrated_is_bsdf {
+                    moments.add(p, p, 1.0);
+                } else {
+                    moments.add(p, 1.0, p);
+                }
+            }
+        }
+        moments
+    }
+
+    #[test]
+    fn a_near_mirror_lobe_under_a_broad_light_gives_three_quarters() {
+        // f concentrated where p_B is: the supplemental's §1.4 limit.
+        let alpha = synthetic_moments(1e4, true).alpha([0.0, 1.0]);
+        assert!((alpha - 0.75).abs() < 1e-3, "{alpha}");
+    }
+
+    #[test]
+    fn a_tiny_light_over_a_broad_lobe_gives_one_quarter() {
+        let alpha = synthetic_moments(1e4, false).alpha([0.0, 1.0]);
+        assert!((alpha - 0.25).abs() < 1e-3, "{alpha}");
+    }
+
+    #[test]
+    fn mirrors_give_three_quarters() {
+        let mut moments = SecondOrderMoments::default();
+        moments.add_dirac(0.8);
+        assert_eq!(moments.alpha([0.0, 1.0]), 0.75);
+    }
+
+    #[test]
+    fn undefined_estimates_give_one_half_within_the_clamp() {
+        assert_eq!(second_order_alpha(0.0, 0.0), None);
+        assert_eq!(second_order_alpha(1.0, f64::INFINITY), None);
+        // p_B = p_L everywhere: Δp = 0, I₂ = 0, so α is undefined (the integrator uses ½).
+        let mut moments = SecondOrderMoments::default();
+        for i in 0..100 {
+            moments.add(1.0 + i as f32, 2.0, 2.0);
+        }
+        assert_eq!(second_order_alpha(moments.i1, moments.i2), None);
+        assert_eq!(moments.alpha([0.025, 0.975]), 0.5);
+        assert_eq!(moments.alpha([0.6, 0.9]), 0.6);
     }
 }

@@ -1,26 +1,32 @@
-//! `bsdf`: direct lighting with BSDF sampling only: per camera sample and per light, all N samples from the BSDF (delta lights still take one light sample each).
-//! Delta lights (point, directional) take one light sample each.
+//! `bsdf`: direct lighting with BSDF sampling only: per camera sample and per light, all N
+//! samples from the BSDF. Delta lights (point, directional) take one light sample each.
 //!
 //! Parameters:
 //! - `samples` (integer, default 256, in [1, 1048576]): N, samples per light per camera sample.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::estimator::Heuristic;
-use crate::mis;
+use crate::allocation::FixedAlpha;
+use crate::balance::Balance;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::weighting::PerSample;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
-static PARAMS: &[ParamSpec] = &[mis::SAMPLES, mis::AOVS];
+/// The plugin's name in scene files.
+pub const NAME: &str = "bsdf";
+
+static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    mis::create_fixed(params, 1.0, Heuristic::Balance)
+    // With n_L = 0 every weight is 1, whatever the heuristic.
+    MisIntegrator::boxed(params, FixedAlpha { alpha: 1.0 }, PerSample(Balance))
 }
 
 inventory::submit! {
     IntegratorPlugin {
-        name: "bsdf",
+        name: NAME,
         description: "direct lighting from BSDF sampling only",
         params: PARAMS,
         create,

@@ -1,28 +1,59 @@
-//! `max`: direct lighting with the maximum heuristic: per camera sample and per light, N/2 samples from each technique; each sample is kept only by the technique with the larger n_i p_i (weights 1 or 0; ½ each on ties).
-//! Delta lights (point, directional) take one light sample each.
+//! `max`: direct lighting with the maximum heuristic: per camera sample and per light, N/2
+//! samples from each technique; each sample has weight 1 if its technique has the larger n_i p_i
+//! at its direction, 0 otherwise (½ each on ties) (Veach 1997). Delta lights (point,
+//! directional) take one light sample each.
 //!
 //! Parameters:
 //! - `samples` (integer, default 256, in [1, 1048576]): N, samples per light per camera sample.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::estimator::Heuristic;
-use crate::mis;
+use crate::allocation::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::weighting::{Heuristic, PerSample};
+use glam::Vec4;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
-static PARAMS: &[ParamSpec] = &[mis::SAMPLES, mis::AOVS];
+/// The plugin's name in scene files.
+pub const NAME: &str = "max";
+
+/// w_i = 1 for the technique with the larger n_i p_i. Decided by comparing the products
+/// themselves, not their rounded ratio, so that the two weights always sum to one.
+pub struct Maximum;
+
+impl Heuristic for Maximum {
+    #[inline]
+    fn weight(&self, mine: f32, other: f32) -> f32 {
+        if mine > other { 1.0 } else { 0.0 }
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        Vec4::select(mine.cmpgt(other), Vec4::ONE, Vec4::ZERO)
+    }
+}
+
+static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    mis::create_fixed(params, 0.5, Heuristic::Maximum)
+    MisIntegrator::boxed(params, FixedAlpha { alpha: 0.5 }, PerSample(Maximum))
 }
 
 inventory::submit! {
     IntegratorPlugin {
-        name: "max",
+        name: NAME,
         description: "direct lighting, BSDF and light sampling combined by the maximum heuristic",
         params: PARAMS,
         create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn weights_are_a_partition_of_unity() {
+        crate::weighting::assert_partition_of_unity(&super::Maximum);
     }
 }

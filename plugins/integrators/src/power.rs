@@ -1,4 +1,5 @@
-//! `power`: direct lighting with the power heuristic (β = 2): per camera sample and per light, N/2 samples from each technique, weighted w_i = (n_i p_i)² / Σ_k (n_k p_k)² (Veach 1997).
+//! `power`: direct lighting with the power heuristic (β = 2): per camera sample and per light,
+//! N/2 samples from each technique, weighted w_i = (n_i p_i)² / Σ_k (n_k p_k)² (Veach 1997).
 //! Delta lights (point, directional) take one light sample each.
 //!
 //! Parameters:
@@ -6,23 +7,55 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::estimator::Heuristic;
-use crate::mis;
+use crate::allocation::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::weighting::{Heuristic, PerSample};
+use glam::Vec4;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
-static PARAMS: &[ParamSpec] = &[mis::SAMPLES, mis::AOVS];
+/// The plugin's name in scene files.
+pub const NAME: &str = "power";
+
+/// w_i = (n_i p_i)² / Σ_k (n_k p_k)², with the ratio r = other / mine as for [`Balance`].
+///
+/// [`Balance`]: crate::balance::Balance
+pub struct Power;
+
+impl Heuristic for Power {
+    #[inline]
+    fn weight(&self, mine: f32, other: f32) -> f32 {
+        let r = other / mine;
+        1.0 / (1.0 + r * r)
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        let r = other / mine;
+        Vec4::ONE / (Vec4::ONE + r * r)
+    }
+}
+
+static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    mis::create_fixed(params, 0.5, Heuristic::Power)
+    MisIntegrator::boxed(params, FixedAlpha { alpha: 0.5 }, PerSample(Power))
 }
 
 inventory::submit! {
     IntegratorPlugin {
-        name: "power",
+        name: NAME,
         description: "direct lighting, BSDF and light sampling combined by the power heuristic (β = 2)",
         params: PARAMS,
         create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn weights_are_a_partition_of_unity() {
+        crate::weighting::assert_partition_of_unity(&super::Power);
     }
 }

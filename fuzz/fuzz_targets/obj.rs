@@ -1,0 +1,7 @@
+//! Wavefront OBJ bytes → a mesh or an error, never a panic.
+#![no_main]
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    lumis::fuzzing::obj(data);
+});

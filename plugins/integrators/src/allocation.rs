@@ -1,0 +1,258 @@
+//! Sample allocation: how many of a light's N samples at a shading point each technique gets,
+//! possibly in phases (a pilot, then the rest), and how the phases combine into one unbiased
+//! estimate. An [`Allocation`] draws its phases through a [`LightSampling`], which runs the
+//! shared estimator, the weighting and the observers for each.
+
+use crate::aovs::LightTally;
+use crate::estimator::{SampleRecord, ShadingPoint, draw_bsdf_samples, draw_light_samples};
+use crate::phase::{Observer, Phase, PhaseRole};
+use crate::weighting::Weighting;
+use glam::UVec2;
+use lumis_core::math::Rgb;
+use lumis_core::sampler::Sampler;
+use lumis_core::scene::Scene;
+
+/// How many samples of each technique one phase draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampleSplit {
+    pub n_bsdf: u32,
+    pub n_light: u32,
+}
+
+impl SampleSplit {
+    /// `n` samples with a fraction `alpha` from the BSDF: n_B = ⌊α·n + ½⌋, n_L = n − n_B. When
+    /// 0 < α < 1 and n ≥ 2 each technique keeps at least one sample, so that neither technique's
+    /// support is ever dropped (a mirror needs BSDF samples, a point-like light light samples).
+    /// Weights use these realised counts, so the estimate is unbiased for any α chosen
+    /// independently of the samples it weighs; and the counts are deterministic (no random
+    /// rounding), so images stay bit-identical across thread counts.
+    pub fn new(alpha: f64, n: u32) -> Self {
+        let mut n_bsdf = ((alpha * n as f64 + 0.5).floor() as u32).min(n);
+        if alpha > 0.0 && alpha < 1.0 && n >= 2 {
+            n_bsdf = n_bsdf.clamp(1, n - 1);
+        }
+        SampleSplit {
+            n_bsdf,
+            n_light: n - n_bsdf,
+        }
+    }
+
+    pub fn total(&self) -> u32 {
+        self.n_bsdf + self.n_light
+    }
+}
+
+/// One light's estimate at one shading point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightEstimate {
+    /// The estimate of the radiance reflected from this light, L̂_j.
+    pub value: Rgb,
+    /// The fraction of samples the method meant for BSDF sampling (the `alpha` AOV).
+    pub alpha: f64,
+}
+
+/// How a light's samples are allocated to the techniques, and how phases combine.
+pub trait Allocation: Send + Sync {
+    /// Estimates the light of `sampling` at its shading point with its N =
+    /// `sampling.samples()` samples, each phase weighted by `weighting` (or by a weighting the
+    /// method builds itself, e.g. from a pilot).
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate;
+
+    /// Work once per scene before rendering (e.g. a pilot pass over the image whose
+    /// statistics, filtered over neighbouring pixels, `estimate` then reads per pixel and light
+    /// through `sampling.pixel()`).
+    fn preprocess(&mut self, _scene: &Scene) {}
+}
+
+/// Buffers for one phase's records and contributions, reused by each thread: no allocation
+/// per sample, and after the first phases none at all.
+#[derive(Default)]
+pub struct PhaseBuffers {
+    records: Vec<SampleRecord>,
+    contributions: Vec<Rgb>,
+}
+
+thread_local! {
+    static PHASE_BUFFERS: std::cell::RefCell<PhaseBuffers> =
+        std::cell::RefCell::new(PhaseBuffers::default());
+}
+
+impl PhaseBuffers {
+    /// Runs `f` with this thread's buffers, the ones every MIS integrator reuses for every
+    /// light of every camera sample (also for pilot passes that sample lights themselves). Not
+    /// re-entrant: `f` must not call it again.
+    pub fn with_thread_local<R>(f: impl FnOnce(&mut PhaseBuffers) -> R) -> R {
+        PHASE_BUFFERS.with_borrow_mut(f)
+    }
+}
+
+/// The sampling of one non-delta light at one shading point: draws phases for an
+/// [`Allocation`].
+pub struct LightSampling<'a> {
+    scene: &'a Scene,
+    point: &'a ShadingPoint<'a>,
+    light: usize,
+    pixel: UVec2,
+    samples: u32,
+    sampler: &'a mut Sampler,
+    buffers: &'a mut PhaseBuffers,
+    /// The AOV statistics of this light, when an AOV asks for them.
+    tally: Option<&'a mut LightTally>,
+    /// The split of the last phase drawn, whose records are still in `buffers`.
+    last_split: Option<SampleSplit>,
+}
+
+impl<'a> LightSampling<'a> {
+    /// The sampling of light `light` at `point`, seen from `pixel`, with N = `samples`
+    /// samples drawn from `sampler` into `buffers`.
+    pub fn new(
+        scene: &'a Scene,
+        point: &'a ShadingPoint<'a>,
+        light: usize,
+        pixel: UVec2,
+        samples: u32,
+        sampler: &'a mut Sampler,
+        buffers: &'a mut PhaseBuffers,
+    ) -> Self {
+        LightSampling {
+            scene,
+            point,
+            light,
+            pixel,
+            samples,
+            sampler,
+            buffers,
+            tally: None,
+            last_split: None,
+        }
+    }
+
+    /// Also shows every phase to the AOV statistics `tally`.
+    pub(crate) fn with_tally(self, tally: &'a mut LightTally) -> Self {
+        LightSampling {
+            tally: Some(tally),
+            ..self
+        }
+    }
+
+    /// N, the samples the integrator gives each light per camera sample.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    pub fn scene(&self) -> &Scene {
+        self.scene
+    }
+
+    pub fn shading_point(&self) -> &ShadingPoint<'_> {
+        self.point
+    }
+
+    /// Index of the light in `scene.emitters`.
+    pub fn light(&self) -> usize {
+        self.light
+    }
+
+    /// The pixel being rendered.
+    pub fn pixel(&self) -> UVec2 {
+        self.pixel
+    }
+
+    /// Draws one phase (`split.n_bsdf` BSDF samples, then `split.n_light` light samples, from
+    /// the camera sample's stream), weighs it with `weighting`, shows it to `observer` and to
+    /// the AOV statistics (as `role` says), and returns its estimate.
+    pub fn phase<W: Weighting + ?Sized, O: Observer + ?Sized>(
+        &mut self,
+        split: SampleSplit,
+        role: PhaseRole,
+        weighting: &W,
+        observer: &mut O,
+    ) -> Rgb {
+        let PhaseBuffers {
+            records,
+            contributions,
+        } = &mut *self.buffers;
+        records.clear();
+        let (scene, point, light) = (self.scene, self.point, self.light);
+        draw_bsdf_samples(scene, point, light, split.n_bsdf, self.sampler, records);
+        draw_light_samples(scene, point, light, split.n_light, self.sampler, records);
+        contributions.clear();
+        contributions.resize(records.len(), Rgb::ZERO);
+        let phase = Phase {
+            pixel: self.pixel,
+            light,
+            split,
+            records,
+        };
+        let value = weighting.weigh(&phase, contributions);
+        observer.observe(&phase, contributions);
+        if let Some(tally) = self.tally.as_deref_mut() {
+            tally.observe(&phase, contributions, role);
+        }
+        self.last_split = Some(split);
+        value
+    }
+
+    /// The last phase drawn and its records' contributions, until the next phase replaces
+    /// them: for an allocation that needs a pilot's samples themselves (e.g. to minimise a
+    /// function of all of them), not only what an observer accumulated.
+    pub fn last_phase(&self) -> Option<(Phase<'_>, &[Rgb])> {
+        let split = self.last_split?;
+        let phase = Phase {
+            pixel: self.pixel,
+            light: self.light,
+            split,
+            records: &self.buffers.records,
+        };
+        Some((phase, &self.buffers.contributions))
+    }
+}
+
+/// A fixed fraction α of each light's samples from the BSDF, in one phase: `bsdf` (α = 1),
+/// `light` (α = 0), the heuristics (α = ½). Light sampling can never reach a Dirac lobe, so
+/// α = 0 gives a purely specular BSDF BSDF samples instead.
+pub struct FixedAlpha {
+    pub alpha: f64,
+}
+
+impl Allocation for FixedAlpha {
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate {
+        let n = sampling.samples();
+        let alpha = if self.alpha == 0.0 && sampling.shading_point().is_pure_delta() {
+            1.0
+        } else {
+            self.alpha
+        };
+        let split = SampleSplit::new(alpha, n);
+        let value = sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ());
+        LightEstimate {
+            value,
+            alpha: split.n_bsdf as f64 / n as f64,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_splits_round_and_keep_both_techniques() {
+        let split = |n_bsdf, n_light| SampleSplit { n_bsdf, n_light };
+        assert_eq!(SampleSplit::new(0.5, 256), split(128, 128));
+        assert_eq!(SampleSplit::new(0.025, 16), split(1, 15));
+        assert_eq!(SampleSplit::new(0.975, 16), split(15, 1));
+        assert_eq!(SampleSplit::new(1.0, 16), split(16, 0));
+        assert_eq!(SampleSplit::new(0.0, 16), split(0, 16));
+        assert_eq!(SampleSplit::new(0.3, 1).total(), 1);
+        assert_eq!(SampleSplit::new(0.5, 0), split(0, 0));
+    }
+}

@@ -1,0 +1,252 @@
+//! The AOVs of the MIS integrators, by name: `alpha` (with its colourings), `sampling_variance`
+//! and `samples` (docs/integrators.md). Other crates (the study, the tests) use the names below,
+//! so that renaming a layer or channel breaks their build, not their results.
+//!
+//! What the layers need is kept per pixel as sums over camera samples (the pixel's sums, see
+//! `lumis_core::integrator`): per light j, at `PER_LIGHT · j`, Σ α, the number of shading
+//! points, Σ of the light's contribution (luminance), and Σ Y, Σ Y², the number of samples Y
+//! (the one-sample estimates of the measured phases); then the BSDF and light sample counts.
+
+use crate::allocation::LightEstimate;
+use crate::phase::{Phase, PhaseRole};
+use lumis_core::math::{Rgb, luminance};
+use lumis_core::output::Aov;
+use lumis_core::scene::Scene;
+
+/// Layer `alpha`: channel [`COMBINED`] and one channel per non-delta light ([`light_channel`]).
+pub const ALPHA: &str = "alpha";
+/// Layer `alpha_color`: the combined α coloured as in the supplemental's §5.1 (R, G, B).
+pub const ALPHA_COLOR: &str = "alpha_color";
+/// Layer `sampling_variance`: V[L_{1,α}] per pixel, summed over lights (channel [`Y`]).
+pub const SAMPLING_VARIANCE: &str = "sampling_variance";
+/// Layer `samples`: BSDF and light samples drawn in the pixel (channels [`BSDF`], [`LIGHT`]).
+pub const SAMPLE_COUNTS: &str = "samples";
+/// Channel of `alpha`: α of all lights, weighted by their contributions.
+pub const COMBINED: &str = "combined";
+/// Channel of `sampling_variance`.
+pub const Y: &str = "Y";
+/// Channels of `samples`.
+pub const BSDF: &str = "bsdf";
+pub const LIGHT: &str = "light";
+/// The layers the `aovs` parameter may ask for.
+pub const NAMES: &[&str] = &[ALPHA, SAMPLING_VARIANCE, SAMPLE_COUNTS];
+
+/// Channel of `alpha` for light `j` (its index in the scene's emitters).
+pub fn light_channel(j: usize) -> String {
+    format!("light{j}")
+}
+
+/// Layer with the coloured α of light `j` alone.
+pub fn alpha_color_light(j: usize) -> String {
+    format!("{ALPHA_COLOR}_light{j}")
+}
+
+/// The supplemental's §5.1 colouring: red = light sampling, green = BSDF sampling, yellow = ½.
+pub fn alpha_color(alpha: f64) -> [f32; 3] {
+    let m = alpha.max(1.0 - alpha);
+    [((1.0 - alpha) / m) as f32, (alpha / m) as f32, 0.0]
+}
+
+/// Sums kept per light in a pixel's sums.
+const PER_LIGHT: usize = 6;
+
+/// Which AOV layers are written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AovRequest {
+    pub alpha: bool,
+    pub sampling_variance: bool,
+    pub samples: bool,
+}
+
+/// The statistics of one light at one shading point, gathered from its phases.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LightTally {
+    /// Σ Y and Σ Y² over the measured phases' samples, Y_i = n × (contribution of sample i)
+    /// in luminance, n the phase's sample count: one-sample estimates of the light.
+    sum: f64,
+    sum_sq: f64,
+    /// Samples of the measured phases.
+    count: u32,
+    /// Samples of the counted phases.
+    n_bsdf: u32,
+    n_light: u32,
+}
+
+impl LightTally {
+    pub(crate) fn observe(&mut self, phase: &Phase, contributions: &[Rgb], role: PhaseRole) {
+        if role.counted {
+            self.n_bsdf += phase.split.n_bsdf;
+            self.n_light += phase.split.n_light;
+        }
+        if role.measured {
+            let n = phase.split.n_bsdf as f32 + phase.split.n_light as f32;
+            let (mut sum, mut sum_sq) = (0.0, 0.0);
+            for c in contributions {
+                let y = (luminance(*c) * n) as f64;
+                sum += y;
+                sum_sq += y * y;
+            }
+            self.sum += sum;
+            self.sum_sq += sum_sq;
+            self.count += phase.split.total();
+        }
+    }
+}
+
+fn area_lights(scene: &Scene) -> impl Iterator<Item = usize> + '_ {
+    (0..scene.emitters.len()).filter(|&j| !scene.emitters[j].is_delta())
+}
+
+impl AovRequest {
+    /// The request of an `aovs` list (names from [`NAMES`]).
+    pub fn from_names(names: &[&str]) -> Self {
+        AovRequest {
+            alpha: names.contains(&ALPHA),
+            sampling_variance: names.contains(&SAMPLING_VARIANCE),
+            samples: names.contains(&SAMPLE_COUNTS),
+        }
+    }
+
+    pub fn any(&self) -> bool {
+        self.alpha || self.sampling_variance || self.samples
+    }
+
+    /// The layers, in the order their values are written.
+    pub fn declare(&self, scene: &Scene) -> Vec<Aov> {
+        let rgb = || vec!["R".to_string(), "G".to_string(), "B".to_string()];
+        let mut aovs = Vec::new();
+        if self.alpha {
+            let mut channels = vec![COMBINED.to_string()];
+            channels.extend(area_lights(scene).map(light_channel));
+            aovs.push(Aov {
+                name: ALPHA.into(),
+                channels,
+                preview: false,
+            });
+            aovs.push(Aov {
+                name: ALPHA_COLOR.into(),
+                channels: rgb(),
+                preview: true,
+            });
+            for j in area_lights(scene) {
+                aovs.push(Aov {
+                    name: alpha_color_light(j),
+                    channels: rgb(),
+                    preview: true,
+                });
+            }
+        }
+        if self.sampling_variance {
+            aovs.push(Aov {
+                name: SAMPLING_VARIANCE.into(),
+                channels: vec![Y.into()],
+                preview: false,
+            });
+        }
+        if self.samples {
+            aovs.push(Aov {
+                name: SAMPLE_COUNTS.into(),
+                channels: vec![BSDF.into(), LIGHT.into()],
+                preview: false,
+            });
+        }
+        aovs
+    }
+
+    /// Sums per pixel: none unless a layer is asked for.
+    pub fn pixel_sums(&self, scene: &Scene) -> usize {
+        if self.any() {
+            PER_LIGHT * scene.emitters.len() + 2
+        } else {
+            0
+        }
+    }
+
+    /// Adds light `light`'s estimate at one shading point and its tally to the pixel's sums.
+    pub(crate) fn add(
+        &self,
+        sums: &mut [f64],
+        light: usize,
+        estimate: &LightEstimate,
+        tally: &LightTally,
+    ) {
+        let lights = (sums.len() - 2) / PER_LIGHT;
+        let st = &mut sums[PER_LIGHT * light..PER_LIGHT * (light + 1)];
+        st[0] += estimate.alpha;
+        st[1] += 1.0;
+        st[2] += luminance(estimate.value) as f64;
+        st[3] += tally.sum;
+        st[4] += tally.sum_sq;
+        st[5] += tally.count as f64;
+        sums[PER_LIGHT * lights] += tally.n_bsdf as f64;
+        sums[PER_LIGHT * lights + 1] += tally.n_light as f64;
+    }
+
+    /// The pixel's AOV values from its sums, in the order of [`declare`](Self::declare).
+    pub fn resolve(&self, scene: &Scene, sums: &[f64], aovs: &mut [f32]) {
+        if !self.any() {
+            return;
+        }
+        let stats = |j: usize| &sums[PER_LIGHT * j..PER_LIGHT * (j + 1)];
+        let mut aov = aovs.iter_mut();
+        let mut put = |v: f32| {
+            if let Some(slot) = aov.next() {
+                *slot = if v.is_finite() { v } else { 0.0 };
+            }
+        };
+        if self.alpha {
+            let alpha_of = |j: usize| {
+                let st = stats(j);
+                (st[1] > 0.0).then(|| st[0] / st[1])
+            };
+            // Combined: weighted by each light's contribution (a plain mean if all are black).
+            let weight: f64 = area_lights(scene).map(|j| stats(j)[2]).sum();
+            let combined = if weight > 0.0 {
+                area_lights(scene)
+                    .filter_map(|j| alpha_of(j).map(|a| a * stats(j)[2]))
+                    .sum::<f64>()
+                    / weight
+            } else {
+                let (sum, count) = area_lights(scene)
+                    .filter_map(alpha_of)
+                    .fold((0.0, 0u32), |(s, n), a| (s + a, n + 1));
+                if count == 0 {
+                    f64::NAN
+                } else {
+                    sum / count as f64
+                }
+            };
+            // Pixels with no shading point (background) get α = ½ and black colours.
+            put(if combined.is_nan() {
+                0.5
+            } else {
+                combined as f32
+            });
+            for j in area_lights(scene) {
+                put(alpha_of(j).unwrap_or(0.5) as f32);
+            }
+            let color = |a: f64| if a.is_nan() { [0.0; 3] } else { alpha_color(a) };
+            for c in color(combined) {
+                put(c);
+            }
+            for j in area_lights(scene) {
+                for c in color(alpha_of(j).unwrap_or(f64::NAN)) {
+                    put(c);
+                }
+            }
+        }
+        let lights = scene.emitters.len();
+        if self.sampling_variance {
+            let variance: f64 = (0..lights)
+                .map(stats)
+                .filter(|st| st[5] >= 2.0)
+                .map(|st| ((st[4] - st[3] * st[3] / st[5]) / (st[5] - 1.0)).max(0.0))
+                .sum();
+            put(variance as f32);
+        }
+        if self.samples {
+            put(sums[PER_LIGHT * lights] as f32);
+            put(sums[PER_LIGHT * lights + 1] as f32);
+        }
+    }
+}

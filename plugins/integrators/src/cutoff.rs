@@ -1,0 +1,127 @@
+//! `cutoff`: direct lighting with Veach's cutoff heuristic (Veach 1997, §9.2.2): per camera
+//! sample and per light, N/2 samples from each technique; a technique whose n_i p_i at a
+//! sample's direction is below `threshold` times the larger of the two gets weight 0 there, and
+//! the techniques above the cutoff share the weight as in the balance heuristic:
+//! w_i = n_i p_i / Σ_{k: n_k p_k ≥ threshold · max} n_k p_k. It sits between the balance
+//! heuristic (threshold 0) and the maximum heuristic (threshold 1): it removes the small
+//! weights that add variance where one technique is much better, and keeps the balance
+//! heuristic's robustness where the two are comparable. Delta lights (point, directional) take
+//! one light sample each.
+//!
+//! Parameters:
+//! - `samples` (integer, default 256, in [1, 1048576]): N, samples per light per camera sample.
+//! - `threshold` (float, default 0.1, in [0, 1]): Veach's α, the cutoff relative to the larger
+//!   n_i p_i; 0.1 is the value Veach compares the heuristics with.
+//! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
+//!   docs/integrators.md).
+
+use crate::allocation::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::weighting::{Heuristic, PerSample};
+use glam::Vec4;
+use lumis_core::integrator::Integrator;
+use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::IntegratorPlugin;
+
+/// The plugin's name in scene files.
+pub const NAME: &str = "cutoff";
+/// Parameter: Veach's α, the cutoff relative to the larger n_i p_i.
+pub const THRESHOLD: &str = "threshold";
+
+/// The cutoff heuristic for two techniques.
+pub struct Cutoff {
+    pub threshold: f32,
+}
+
+impl Heuristic for Cutoff {
+    #[inline]
+    fn weight(&self, mine: f32, other: f32) -> f32 {
+        if mine < self.threshold * other {
+            0.0
+        } else if other < self.threshold * mine {
+            1.0
+        } else {
+            1.0 / (1.0 + other / mine)
+        }
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        let t = Vec4::splat(self.threshold);
+        let balance = Vec4::ONE / (Vec4::ONE + other / mine);
+        let kept = Vec4::select((other * t).cmpgt(mine), Vec4::ZERO, balance);
+        Vec4::select((mine * t).cmpgt(other), Vec4::ONE, kept)
+    }
+}
+
+static PARAMS: &[ParamSpec] = &[
+    SAMPLES_SPEC,
+    ParamSpec {
+        name: THRESHOLD,
+        kind: ParamKind::Float {
+            default: Some(0.1),
+            min: 0.0,
+            max: 1.0,
+        },
+        unit: "",
+        description: "Veach's α: a technique whose n·p is below this fraction of the larger one gets weight 0",
+    },
+    AOVS_SPEC,
+];
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let threshold = params.float(THRESHOLD)?;
+    MisIntegrator::boxed(
+        params,
+        FixedAlpha { alpha: 0.5 },
+        PerSample(Cutoff { threshold }),
+    )
+}
+
+inventory::submit! {
+    IntegratorPlugin {
+        name: NAME,
+        description: "direct lighting, BSDF and light sampling combined by Veach's cutoff heuristic",
+        params: PARAMS,
+        create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::balance::Balance;
+    use crate::max::Maximum;
+    use crate::weighting::assert_partition_of_unity;
+
+    #[test]
+    fn weights_are_a_partition_of_unity() {
+        for threshold in [0.0, 0.01, 0.1, 0.5, 0.999, 1.0] {
+            assert_partition_of_unity(&Cutoff { threshold });
+        }
+    }
+
+    #[test]
+    fn small_weights_are_cut_and_the_rest_balanced() {
+        let h = Cutoff { threshold: 0.1 };
+        assert_eq!(h.weight(1.0, 20.0), 0.0);
+        assert_eq!(h.weight(20.0, 1.0), 1.0);
+        assert_eq!(h.weight(1.0, 3.0), Balance.weight(1.0, 3.0));
+        // Just above the cutoff the balance weight, just below none.
+        assert!(h.weight(1.0, 9.99) > 0.09);
+        assert_eq!(h.weight(1.0, 10.01), 0.0);
+    }
+
+    #[test]
+    fn thresholds_zero_and_one_are_balance_and_maximum() {
+        let values = [0.0f32, 1e-30, 0.3, 0.7, 1.0, 2.0, 9.0, 1e30];
+        for a in values {
+            for b in values.iter().copied().filter(|&b| b != a) {
+                let balance = Cutoff { threshold: 0.0 }.weight(a, b);
+                assert_eq!(balance.to_bits(), Balance.weight(a, b).to_bits(), "{a} {b}");
+                let max = Cutoff { threshold: 1.0 }.weight(a, b);
+                assert_eq!(max, Maximum.weight(a, b), "{a} {b}");
+            }
+        }
+    }
+}

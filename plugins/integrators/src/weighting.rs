@@ -1,0 +1,229 @@
+//! MIS weighting: how one phase's samples of one light are combined into an estimate.
+//!
+//! With counts n_B, n_L and densities p_B, p_L, the multi-sample MIS estimate is
+//!
+//! ```text
+//!   L̂ = Σ_{BSDF samples} w_B f / (n_B p_B) + Σ_{light samples} w_L f / (n_L p_L),
+//! ```
+//!
+//! unbiased whenever w_B + w_L = 1 wherever f ≠ 0 (Veach 1997). A [`Weighting`] sees the whole
+//! phase at once, so methods whose weights depend on every sample (optimal MIS weights from a
+//! linear system over the batch) fit as well as per-sample [`Heuristic`]s, which [`PerSample`]
+//! turns into a weighting.
+
+use crate::estimator::SampleRecord;
+use crate::phase::Phase;
+use glam::Vec4;
+use lumis_core::math::Rgb;
+use lumis_core::scene::Scene;
+
+/// Combines one phase's samples into its estimate.
+pub trait Weighting: Send + Sync {
+    /// Writes each record's contribution to the estimate into `contributions` (as long as
+    /// `phase.records`, all zero on entry; black records contribute zero) and returns their
+    /// sum, the phase's estimate.
+    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb;
+
+    /// Work once per scene before rendering (e.g. a pilot pass that measures per-technique
+    /// statistics per block of pixels, which `weigh` then reads through `phase.pixel`).
+    fn preprocess(&mut self, _scene: &Scene) {}
+}
+
+/// A per-sample weight: the weight of a sample whose technique has n·p = `mine` against the
+/// other technique's n·p = `other` at the sample's direction. Only called with `mine ≠ other`
+/// (equal products weigh ½ each); must satisfy w(a, b) + w(b, a) = 1 for all a, b ≥ 0,
+/// including 0 and ∞, so that the estimate is unbiased.
+pub trait Heuristic: Send + Sync {
+    fn weight(&self, mine: f32, other: f32) -> f32;
+
+    /// Four weights at once, lane i being `weight(mine[i], other[i])` bit for bit; lanes with
+    /// equal products are discarded, whatever they hold. The default calls `weight` four times;
+    /// a heuristic whose formula is plain arithmetic overrides it with vector arithmetic (four
+    /// divisions for the price of one: the weighting pass is bound by its divisions).
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        Vec4::new(
+            self.weight(mine.x, other.x),
+            self.weight(mine.y, other.y),
+            self.weight(mine.z, other.z),
+            self.weight(mine.w, other.w),
+        )
+    }
+}
+
+/// The multi-sample estimator with the per-sample weights of a [`Heuristic`]. A Dirac BSDF
+/// sample, which light sampling cannot produce, has weight 1 and contributes f / n_B (its
+/// record's f is already divided by the Dirac density).
+pub struct PerSample<H>(pub H);
+
+impl<H: Heuristic> PerSample<H> {
+    /// Weighs the records of one technique (n_own samples, against n_other of the other),
+    /// adding their contributions to `value` in order. `products` gives a record's (own, other)
+    /// densities. Weights are computed four records at a time.
+    #[inline]
+    fn weigh_technique(
+        &self,
+        records: &[SampleRecord],
+        (n_own, n_other): (f32, f32),
+        densities: impl Fn(&SampleRecord) -> (f32, f32),
+        contributions: &mut [Rgb],
+        value: &mut Rgb,
+    ) {
+        for (chunk, out) in records.chunks(4).zip(contributions.chunks_mut(4)) {
+            // Lanes past the end hold equal products, which weigh ½ and are not used.
+            let (mut mine, mut other) = ([1.0f32; 4], [1.0f32; 4]);
+            for (i, r) in chunk.iter().enumerate() {
+                let (p_own, p_other) = densities(r);
+                (mine[i], other[i]) = (n_own * p_own, n_other * p_other);
+            }
+            let (mine, other) = (Vec4::from_array(mine), Vec4::from_array(other));
+            let w = Vec4::select(
+                mine.cmpeq(other),
+                Vec4::splat(0.5),
+                self.0.weight4(mine, other),
+            );
+            // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
+            let scale = (w / mine).to_array();
+            for ((r, c), scale) in chunk.iter().zip(out).zip(scale) {
+                if r.is_black() {
+                    continue;
+                }
+                *c = if r.delta { r.f / n_own } else { r.f * scale };
+                *value += *c;
+            }
+        }
+    }
+}
+
+impl<H: Heuristic> Weighting for PerSample<H> {
+    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
+        let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
+        let (bsdf, light) = contributions.split_at_mut(phase.split.n_bsdf as usize);
+        // Black records keep the zero their contribution starts with (adding it to the sum
+        // would change no bit).
+        let mut value = Rgb::ZERO;
+        self.weigh_technique(
+            phase.bsdf_records(),
+            (n_b, n_l),
+            |r| (r.p_bsdf, r.p_light),
+            bsdf,
+            &mut value,
+        );
+        self.weigh_technique(
+            phase.light_records(),
+            (n_l, n_b),
+            |r| (r.p_light, r.p_bsdf),
+            light,
+            &mut value,
+        );
+        value
+    }
+}
+
+/// Checks for heuristics' unit tests: weights in [0, 1] that sum to one over the two
+/// techniques, for ordinary, equal, zero, infinite and extreme products.
+#[cfg(test)]
+pub(crate) fn assert_partition_of_unity(h: &dyn Heuristic) {
+    let values = [
+        0.0f32,
+        1e-30,
+        0.3,
+        1.0,
+        1.0 + 1e-7,
+        2.0,
+        3.0,
+        1e30,
+        f32::INFINITY,
+    ];
+    for a in values {
+        for b in values {
+            let w = |x: f32, y: f32| if x == y { 0.5 } else { h.weight(x, y) };
+            let (wa, wb) = (w(a, b), w(b, a));
+            assert!((0.0..=1.0).contains(&wa), "w({a}, {b}) = {wa}");
+            if a != b {
+                let lanes = h.weight4(Vec4::new(a, 1.0, a, 2.0), Vec4::new(b, 3.0, b, 0.5));
+                assert_eq!(
+                    lanes.x.to_bits(),
+                    wa.to_bits(),
+                    "weight4 lane of ({a}, {b})"
+                );
+            }
+            assert!(
+                (wa + wb - 1.0).abs() < 1e-6,
+                "w({a}, {b}) + w({b}, {a}) = {}",
+                wa + wb
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::allocation::SampleSplit;
+    use crate::balance::Balance;
+    use glam::UVec2;
+    use lumis_core::sampler::Sampler;
+
+    /// Random records of both techniques, some black, one Dirac (a BSDF sample).
+    fn records(split: SampleSplit) -> Vec<SampleRecord> {
+        let mut s = Sampler::new(3, 4, 5);
+        let mut v: Vec<SampleRecord> = (0..split.total())
+            .map(|i| SampleRecord {
+                f: if i % 5 == 0 {
+                    Rgb::ZERO
+                } else {
+                    Rgb::new(s.next_1d(), s.next_1d(), s.next_1d())
+                },
+                p_bsdf: 0.1 + 3.0 * s.next_1d(),
+                // Some BSDF samples in directions the light cannot produce.
+                p_light: if i < split.n_bsdf && i % 7 == 0 {
+                    0.0
+                } else {
+                    0.1 + 3.0 * s.next_1d()
+                },
+                delta: false,
+            })
+            .collect();
+        v[1].delta = true;
+        v[1].p_light = 0.0;
+        v
+    }
+
+    /// The balance heuristic is the mixture (defensive) estimator Σ f / (n_B p_B + n_L p_L)
+    /// over all samples (a Dirac sample contributing f / n_B), computed here independently.
+    #[test]
+    fn balance_is_the_mixture_estimator() {
+        for split in [
+            SampleSplit::new(0.5, 16),
+            SampleSplit::new(0.2, 11),
+            SampleSplit::new(0.9, 13),
+        ] {
+            let records = records(split);
+            let phase = Phase {
+                pixel: UVec2::ZERO,
+                light: 0,
+                split,
+                records: &records,
+            };
+            let mut contributions = vec![Rgb::ZERO; records.len()];
+            let value = PerSample(Balance).weigh(&phase, &mut contributions);
+            let (n_b, n_l) = (split.n_bsdf as f64, split.n_light as f64);
+            let mut expected = glam::DVec3::ZERO;
+            for r in &records {
+                if r.delta {
+                    expected += r.f.as_dvec3() / n_b;
+                } else if !r.is_black() {
+                    let mix = n_b * r.p_bsdf as f64 + n_l * r.p_light as f64;
+                    expected += r.f.as_dvec3() / mix;
+                }
+            }
+            let sum: Rgb = contributions.iter().copied().sum();
+            assert!(
+                (value.as_dvec3() - expected).abs().max_element() < 1e-5 * expected.max_element(),
+                "{split:?}: {value} vs {expected}"
+            );
+            assert_eq!(sum, value, "contributions add up to the estimate");
+        }
+    }
+}
