@@ -7,7 +7,7 @@ use lumis::image_io::{self, Metadata};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 #[derive(Parser)]
 #[command(
@@ -84,7 +84,8 @@ struct RenderArgs {
     /// Exposure of the PNG preview in stops (overrides film.exposure).
     #[arg(long)]
     exposure: Option<f32>,
-    /// No progress bar and no summary line.
+    /// No progress bar and no summary line. (When stderr is not a terminal, progress is a plain
+    /// line `progress: K of N pixels` at each tenth of the image.)
     #[arg(short, long)]
     quiet: bool,
 }
@@ -313,11 +314,24 @@ fn render(args: RenderArgs) -> Result<()> {
     let flag = cancel.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
         .context("cannot install the Ctrl-C handler")?;
+    // Without a terminal (a log, a script waiting for progress), a plain line per tenth.
+    let plain_progress = !args.quiet && !std::io::stderr().is_terminal() && pixels > 0;
+    let done = AtomicU64::new(0);
+    let progress = |n: u64| {
+        bar.inc(n);
+        if plain_progress {
+            let before = done.fetch_add(n, Ordering::Relaxed);
+            let after = before + n;
+            if after * 10 / pixels > before * 10 / pixels {
+                eprintln!("progress: {after} of {pixels} pixels");
+            }
+        }
+    };
     let (film, stats) = lumis::render::render_cancellable(
         &loaded.scene,
         loaded.integrator.as_ref(),
         args.threads,
-        &|n| bar.inc(n),
+        &progress,
         &cancel,
     )
     .context("cannot start the render threads")?;

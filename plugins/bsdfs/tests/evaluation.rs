@@ -181,6 +181,16 @@ impl Readback {
         }
     }
 
+    /// With `masking` given explicitly (`height_correlated` or `separable`).
+    fn with_masking(alpha: f32, masking: &str) -> Self {
+        Readback {
+            bsdf: bsdf(
+                "glossy",
+                &format!("\"roughness\": {alpha}, \"specular\": 1, \"masking\": \"{masking}\""),
+            ),
+        }
+    }
+
     fn g1(&self, w: Vec3) -> f64 {
         self.bsdf.eval(Vec3::Z, w).x as f64 / self.bsdf.pdf(Vec3::Z, w) as f64
     }
@@ -267,26 +277,40 @@ fn eval_and_pdf_match_the_closed_forms_at_chosen_angles() {
     eprintln!("largest relative error: {worst:.1e} (bound {POINTWISE:.1e})");
 }
 
+/// (cos θo, cos θi) pairs for the masking checks, down to grazing angles.
+const MASKING_PAIRS: [(f64, f64); 7] = [
+    (0.9, 0.8),
+    (0.5, 0.5),
+    (0.2, 0.6),
+    (0.05, 0.3),
+    (1e-2, 1e-2),
+    (1e-3, 0.5),
+    (1e-3, 1e-3),
+];
+
 /// G2 read back from `eval` is the height-correlated 1 / (1 + Λo + Λi), both against its
 /// closed form and against the plugin's own G1 (Λ = 1/G1 − 1), at angles where the
-/// uncorrelated G1(ωo) G1(ωi) differs from it by far more than the tolerance.
+/// uncorrelated G1(ωo) G1(ωi) differs from it by far more than the tolerance; by default and
+/// when `masking: "height_correlated"` is asked for.
 #[test]
 fn masking_is_height_correlated_at_chosen_angles_down_to_grazing() {
+    for explicit in [false, true] {
+        height_correlated_at_chosen_angles(explicit);
+    }
+}
+
+fn height_correlated_at_chosen_angles(explicit: bool) {
     let mut discriminating = 0;
     for alpha32 in [0.05f32, 0.2, 0.5, 1.0] {
         let reference = Reference {
             alpha: alpha32 as f64,
         };
-        let plugin = Readback::new(alpha32);
-        for (cos_o, cos_i) in [
-            (0.9, 0.8),
-            (0.5, 0.5),
-            (0.2, 0.6),
-            (0.05, 0.3),
-            (1e-2, 1e-2),
-            (1e-3, 0.5),
-            (1e-3, 1e-3),
-        ] {
+        let plugin = if explicit {
+            Readback::with_masking(alpha32, "height_correlated")
+        } else {
+            Readback::new(alpha32)
+        };
+        for (cos_o, cos_i) in MASKING_PAIRS {
             let wo = direction(cos_o, 0.4).as_vec3();
             let wi = direction(cos_i, 0.4 + PI - 0.3).as_vec3();
             let (o, i) = (wo.as_dvec3(), wi.as_dvec3());
@@ -315,6 +339,52 @@ fn masking_is_height_correlated_at_chosen_angles_down_to_grazing() {
         }
     }
     // The test has power against the uncorrelated product at most of its angles.
+    assert!(discriminating >= 20, "{discriminating} of 28");
+}
+
+/// With `masking: "separable"`, G2 read back from `eval` is G1(ωo) G1(ωi), both with G1 in closed
+/// form (Walter 2007) and with the plugin's own G1, at angles where the height-correlated term
+/// differs from it by far more than the tolerance (so that a plugin ignoring the option fails);
+/// and `pdf`, the visible-normal density, does not depend on the option.
+#[test]
+fn masking_is_the_product_of_g1_when_separable_is_asked_for() {
+    let mut discriminating = 0;
+    for alpha32 in [0.05f32, 0.2, 0.5, 1.0] {
+        let reference = Reference {
+            alpha: alpha32 as f64,
+        };
+        let plugin = Readback::with_masking(alpha32, "separable");
+        let correlated = Readback::new(alpha32);
+        for (cos_o, cos_i) in MASKING_PAIRS {
+            let wo = direction(cos_o, 0.4).as_vec3();
+            let wi = direction(cos_i, 0.4 + PI - 0.3).as_vec3();
+            let (o, i) = (wo.as_dvec3(), wi.as_dvec3());
+            let g2 = plugin.g2(wo, wi);
+            let product = reference.g1(o) * reference.g1(i);
+            let tolerance = 4.0 * POINTWISE;
+            for (what, expected) in [
+                ("closed form", product),
+                ("from G1", plugin.g1(wo) * plugin.g1(wi)),
+            ] {
+                assert!(
+                    relative(g2, expected) <= tolerance,
+                    "separable, α = {alpha32}, cos θo = {cos_o}, cos θi = {cos_i}: G2 {g2}, \
+                     {what} {expected}"
+                );
+            }
+            let (p, q) = (
+                plugin.bsdf.pdf(wo, wi) as f64,
+                correlated.bsdf.pdf(wo, wi) as f64,
+            );
+            assert!(
+                relative(p, q) <= POINTWISE,
+                "separable, α = {alpha32}: pdf {p} differs from the height-correlated one's {q}"
+            );
+            if relative(product, reference.g2(o, i)) > 10.0 * tolerance {
+                discriminating += 1;
+            }
+        }
+    }
     assert!(discriminating >= 20, "{discriminating} of 28");
 }
 
