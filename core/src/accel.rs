@@ -326,26 +326,8 @@ impl Geometry {
                 }),
             }
         }
-        // A slab test rounds the t at which a ray crosses a box's faces: a ray meeting a triangle
-        // on its box's face (an edge in an axis plane, as on a square light) could be culled
-        // although the watertight triangle test hits it. Each box is widened by the rounding of
-        // the node tests for rays that start within the scene's bounds (a few ε times the
-        // distance from origin to face, at most twice the largest coordinate), with a margin.
-        let extent = prims.iter().fold(0.0f32, |m, p| {
-            let b = p.aabb();
-            m.max(b.min.abs().max_element())
-                .max(b.max.abs().max_element())
-        });
-        let pad = Vec3A::splat(32.0 * f32::EPSILON * extent);
-        let boxes: Vec<Aabb> = prims
-            .iter()
-            .map(|p| {
-                let b = p.aabb();
-                Aabb::new(b.min - pad, b.max + pad)
-            })
-            .collect();
         let bvh = obvhs::cwbvh::builder::build_cwbvh(
-            &boxes,
+            &prims,
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );

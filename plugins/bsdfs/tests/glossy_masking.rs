@@ -96,7 +96,13 @@ fn separable_masking_weight_equals_eval_over_pdf() {
                     smp.weight
                 );
             }
-            assert!(accepted > 10_000, "{name} cos={cos}: {accepted} samples");
+            // A guard that the check above was exercised, not a rate: at α = 1 about half the
+            // reflected directions fall below the horizon (9889–9928 of 20000 accepted at normal
+            // incidence over seeds 1–4, so the former bound of 10000 failed them).
+            assert!(
+                accepted >= 5_000,
+                "{name} cos={cos}: only {accepted} samples"
+            );
         }
     }
 }
