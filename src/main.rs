@@ -91,7 +91,8 @@ struct RenderArgs {
     /// Exposure of the PNG preview in stops (overrides film.exposure).
     #[arg(long)]
     exposure: Option<f32>,
-    /// No progress bar and no summary line.
+    /// No progress bar and no summary line. (When stderr is not a terminal, progress is a plain
+    /// line `progress: K of N pixels` at each tenth of the image.)
     #[arg(short, long)]
     quiet: bool,
 }

@@ -260,6 +260,13 @@ fn intersect_triangle_permuted<const KX: usize, const KY: usize, const KZ: usize
     Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
 }
 
+/// Whether `ray` meets the triangle `p` (within `ray.t_max`), decided by the same watertight test
+/// and the same rounding as [`Geometry::intersect`]: emitters that draw points on triangles use
+/// it to return only directions whose rays reach the triangle.
+pub fn ray_meets_triangle(ray: &Ray, p: &[Vec3; 3]) -> bool {
+    intersect_triangle(ray, &RayShear::new(ray.direction), ray.t_max, p).is_some()
+}
+
 /// The smallest t in (t_min_bound, t_max) where the ray meets the sphere.
 fn intersect_sphere(ray: &Ray, t_max: f32, s: &Sphere) -> Option<f32> {
     // Ray Tracing Gems, ch. 7: a discriminant that does not cancel catastrophically.

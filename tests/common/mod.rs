@@ -104,9 +104,11 @@ pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
     (mean, (variance / n).sqrt())
 }
 
-/// The renderer's render of a loaded scene with `threads` threads.
+/// The scene rendered with `threads` threads as `lumis render` does: the integrator's `preprocess` (pilot passes, cost
+/// measurements) first.
 pub fn render(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::Film {
-    let loaded = load(path, overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut loaded = load(path, overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    loaded.integrator.preprocess(&loaded.scene);
     lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), threads, &|_| {})
         .expect("render")
         .0

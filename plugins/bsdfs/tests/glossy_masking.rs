@@ -4,7 +4,7 @@
 
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::Bsdf;
-use lumis_core::chi2::{Chi2Test, sidak, test_bsdf};
+use lumis_core::chi2::{Chi2Test, FAMILY_FALSE_ALARM, sidak, test_bsdf, test_seed};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, BsdfPlugin};
 use lumis_core::sampler::Sampler;
@@ -25,13 +25,6 @@ fn incident(cos: f32) -> Vec3 {
     let sin = (1.0 - cos * cos).sqrt();
     let phi = 30f32.to_radians();
     Vec3::new(sin * phi.cos(), sin * phi.sin(), cos).normalize()
-}
-
-fn seed() -> u64 {
-    std::env::var("LUMIS_TEST_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(0)
 }
 
 const INCIDENT: [f32; 3] = [1.0, std::f32::consts::FRAC_1_SQRT_2, 0.2];
@@ -62,7 +55,7 @@ fn separable_masking_sampling_passes_chi_square() {
         let wo = incident(cos);
         for (name, params, alpha) in separable_cases() {
             let mut test = Chi2Test {
-                seed: seed(),
+                seed: test_seed(),
                 ..Chi2Test::default()
             };
             if alpha < 0.3 {
@@ -73,7 +66,7 @@ fn separable_masking_sampling_passes_chi_square() {
             cases.push((format!("{name} cos={cos}"), bsdf(&params), wo, test));
         }
     }
-    let alpha = sidak(0.01, cases.len());
+    let alpha = sidak(FAMILY_FALSE_ALARM, cases.len());
     for (name, b, wo, test) in &cases {
         test_bsdf(b.as_ref(), *wo, test).assert_passes(alpha, name);
     }
@@ -85,7 +78,7 @@ fn separable_masking_weight_equals_eval_over_pdf() {
         let b = bsdf(&params);
         for cos in INCIDENT {
             let wo = incident(cos);
-            let mut s = Sampler::new(seed(), 2, 3);
+            let mut s = Sampler::new(test_seed(), 2, 3);
             let mut accepted = 0;
             for _ in 0..20_000 {
                 let (ul, u) = (s.next_1d(), s.next_2d());
@@ -103,7 +96,13 @@ fn separable_masking_weight_equals_eval_over_pdf() {
                     smp.weight
                 );
             }
-            assert!(accepted > 10_000, "{name} cos={cos}: {accepted} samples");
+            // A guard that the check above was exercised, not a rate: at α = 1 about half the
+            // reflected directions fall below the horizon (9889–9928 of 20000 accepted at normal
+            // incidence over seeds 1–4, so the former bound of 10000 failed them).
+            assert!(
+                accepted >= 5_000,
+                "{name} cos={cos}: only {accepted} samples"
+            );
         }
     }
 }
@@ -119,7 +118,7 @@ fn lambda(alpha: f64, w: Vec3) -> f64 {
 /// (1 + Λo + Λi) / ((1 + Λo)(1 + Λi)), 1 at normal incidence and falling toward grazing angles.
 #[test]
 fn separable_differs_from_height_correlated_by_the_formula_factor() {
-    let mut s = Sampler::new(seed(), 5, 5);
+    let mut s = Sampler::new(test_seed(), 5, 5);
     for alpha in [0.05f32, 0.3, 0.8] {
         let hc = bsdf(&format!("\"roughness\": {alpha}, \"specular\": 1"));
         let sep = bsdf(&format!(
@@ -162,7 +161,7 @@ fn separable_masking_loses_energy_never_gains_it() {
         ));
         for cos in [1.0, 0.5, 0.1] {
             let wo = incident(cos);
-            let mut s = Sampler::new(seed(), 7, 7);
+            let mut s = Sampler::new(test_seed(), 7, 7);
             let n = 50_000;
             let (mut sum, mut sum2) = (0.0f64, 0.0f64);
             for _ in 0..n {

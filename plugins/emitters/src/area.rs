@@ -7,11 +7,14 @@
 //!   shape's normal points to).
 //!
 //! Sampling: on triangle meshes, a triangle is chosen in proportion to its area and a point is
-//! drawn uniformly on it, the density converted to solid angle; on a sphere seen from outside,
+//! drawn uniformly on it, the density converted to solid angle; a direction whose ray would not
+//! meet that triangle (a point on its edge, up to rounding) is no sample, so that every sample is
+//! a direction in which a traced ray finds the light; on a sphere seen from outside,
 //! the cone of directions the sphere subtends is sampled uniformly (pbrt-v4 §6.2.4), which is far
 //! better than area sampling for small, distant spheres.
 
 use glam::{Vec2, Vec3};
+use lumis_core::accel::{Ray, ray_meets_triangle};
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::warp::square_to_triangle_barycentrics;
 use lumis_core::math::{Distribution1D, Frame, Rgb};
@@ -69,7 +72,7 @@ fn cone(radius: f32, distance2: f32) -> (f32, f32) {
 
 impl Emitter for AreaEmitter {
     fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let (position, normal, pdf) = match &self.surface {
+        let (position, normal, pdf, wi) = match &self.surface {
             Surface::Triangles {
                 triangles,
                 normals,
@@ -81,10 +84,20 @@ impl Emitter for AreaEmitter {
                 let [p0, p1, p2] = triangles[i];
                 let p = b0 * p0 + b1 * p1 + (1.0 - b0 - b1) * p2;
                 let to = p - reference.position;
-                let distance = to.length();
-                let wi = to / distance;
-                let pdf = Self::solid_angle_pdf(1.0 / area, distance, normals[i], wi);
-                (p, normals[i], pdf)
+                let wi = to.normalize_or_zero();
+                // A point within a few ulps of an edge (u at 0 or 1/2) is reached along the
+                // rounded direction `wi` only by chance: where the ray misses the triangle, a
+                // ray traced along `wi` finds no light (pdf_direction 0) and so must this sample.
+                let ray = Ray {
+                    origin: reference.position,
+                    direction: wi,
+                    t_max: f32::INFINITY,
+                };
+                if !ray_meets_triangle(&ray, &triangles[i]) {
+                    return None;
+                }
+                let pdf = Self::solid_angle_pdf(1.0 / area, to.length(), normals[i], wi);
+                (p, normals[i], pdf, wi)
             }
             Surface::Sphere(s) => {
                 let to_center = s.center - reference.position;
@@ -99,11 +112,8 @@ impl Emitter for AreaEmitter {
                     let to = p - reference.position;
                     let distance = to.length();
                     let area = 4.0 * PI * s.radius * s.radius;
-                    (
-                        p,
-                        n,
-                        Self::solid_angle_pdf(1.0 / area, distance, n, to / distance),
-                    )
+                    let wi = to.normalize_or_zero();
+                    (p, n, Self::solid_angle_pdf(1.0 / area, distance, n, wi), wi)
                 } else {
                     let (sin2_max, one_minus_cos_max) = cone(s.radius, d2);
                     // Uniform in the cone: 1 − cos θ uniform in [0, 1 − cos θmax].
@@ -122,12 +132,11 @@ impl Emitter for AreaEmitter {
                         cos_alpha,
                     ));
                     let p = s.center + s.radius * n;
-                    (p, n, 1.0 / (TAU * one_minus_cos_max))
+                    let wi = (p - reference.position).normalize_or_zero();
+                    (p, n, 1.0 / (TAU * one_minus_cos_max), wi)
                 }
             }
         };
-        let to = position - reference.position;
-        let wi = to.normalize_or_zero();
         if !(pdf > 0.0 && pdf.is_finite()) || wi == Vec3::ZERO || !self.emits_toward(normal, wi) {
             return None;
         }

@@ -4,7 +4,7 @@
 //! the irradiance that quadrature of `eval` gives).
 
 use glam::{Vec2, Vec3};
-use lumis_core::chi2::{Chi2Test, sidak};
+use lumis_core::chi2::{Chi2Test, FAMILY_FALSE_ALARM, sidak, test_seed};
 use lumis_core::emitter::{Emitter, EmitterContext, ReferencePoint};
 use lumis_core::math::Rgb;
 use lumis_core::params::Params;
@@ -13,13 +13,6 @@ use lumis_core::sampler::Sampler;
 use lumis_emitters::envmap::{EnvironmentMap, Interpolation, MapSettings, Orientation};
 use std::f64::consts::PI;
 use std::sync::Arc;
-
-fn seed() -> u64 {
-    std::env::var("LUMIS_TEST_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(0)
-}
 
 fn emitter(params: &str) -> Arc<dyn Emitter> {
     lumis_emitters::link();
@@ -45,7 +38,7 @@ fn bilinear(w: usize, h: usize, pixels: Vec<Rgb>, rotation: f32) -> EnvironmentM
 
 /// Pixels drawn from a fixed stream: positive, varied by two orders of magnitude.
 fn varied_pixels(w: usize, h: usize, stream: u64) -> Vec<Rgb> {
-    let mut s = Sampler::new(seed(), stream, 0);
+    let mut s = Sampler::new(test_seed(), stream, 0);
     (0..w * h)
         .map(|_| {
             let u = s.next_2d();
@@ -85,7 +78,7 @@ fn bilinear_sampling_passes_chi_square() {
     let test = |axis: Vec3, cos_cap: f64| Chi2Test {
         axis,
         cos_cap,
-        seed: seed(),
+        seed: test_seed(),
         ..Chi2Test::default()
     };
     // A real HDR map, turned, over the whole sphere.
@@ -134,7 +127,7 @@ fn bilinear_sampling_passes_chi_square() {
         Arc::new(bilinear(w, h, hot_pixel(w, h, 7, 1), 0.0)),
         test(Vec3::Y, 0.25f64.cos()),
     ));
-    let alpha = sidak(0.01, cases.len());
+    let alpha = sidak(FAMILY_FALSE_ALARM, cases.len());
     for (name, light, test) in &cases {
         test.run(
             |s| light.sample_direction(&ORIGIN, s.next_2d()).map(|ls| ls.wi),
@@ -158,7 +151,7 @@ fn bilinear_samples_agree_with_eval_and_pdf() {
         ),
     ];
     for (name, map) in maps {
-        let mut s = Sampler::new(seed(), 3, 3);
+        let mut s = Sampler::new(test_seed(), 3, 3);
         let mut accepted = 0;
         for _ in 0..20_000 {
             let Some(ls) = map.sample_direction(&ORIGIN, s.next_2d()) else {
@@ -221,7 +214,7 @@ fn bilinear_places_pixels_as_mitsuba() {
 /// Irradiance on a surface with normal n at the origin, by light sampling: mean and standard
 /// error.
 fn irradiance(light: &dyn Emitter, n: Vec3, samples: usize) -> (f64, f64) {
-    let mut s = Sampler::new(seed(), 17, 0);
+    let mut s = Sampler::new(test_seed(), 17, 0);
     let (mut sum, mut sum2) = (0.0f64, 0.0f64);
     for _ in 0..samples {
         let v = light
