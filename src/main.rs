@@ -1,9 +1,8 @@
 //! The `lumis` command-line program.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use lumis::image_io::{self, Metadata};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -280,16 +279,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let mut loaded = lumis::scene::load_scene(&args.scene, &overrides)?;
     let load_time = load_start.elapsed();
     let exr_path = args.output.unwrap_or_else(|| loaded.scene.output.clone());
-    if exr_path
-        .extension()
-        .is_none_or(|e| !e.eq_ignore_ascii_case("exr"))
-    {
-        bail!(
-            "the output `{}` must end in .exr (the PNG preview is written beside it)",
-            exr_path.display()
-        );
-    }
-    let png_path = exr_path.with_extension("png");
+    lumis::render_files::check_exr_path(&exr_path).map_err(anyhow::Error::msg)?;
     let exposure = args.exposure.unwrap_or(loaded.scene.exposure);
 
     loaded.integrator.preprocess(&loaded.scene);
@@ -324,35 +314,14 @@ fn render(args: RenderArgs) -> Result<()> {
     bar.finish_and_clear();
 
     let integrator = &loaded.description.integrator;
-    let mut metadata: Metadata = vec![
-        ("scene".into(), args.scene.display().to_string()),
-        ("integrator".into(), integrator.kind.clone()),
-        ("spp".into(), loaded.scene.spp.to_string()),
-        ("seed".into(), loaded.scene.seed.to_string()),
-        ("partial".into(), stats.partial().to_string()),
-        (
-            "pixels".into(),
-            format!("{} of {}", stats.pixels_done, stats.pixels_total),
-        ),
-        (
-            "tiles".into(),
-            format!("{} of {}", stats.tiles_done, stats.tiles_total),
-        ),
-    ];
-    metadata.extend(integrator.params.iter().map(|(k, v)| {
-        (
-            format!("integrator.{k}"),
-            ron::to_string(v).unwrap_or_default(),
-        )
-    }));
-    image_io::write_exr(&film, &exr_path, &metadata)?;
-    image_io::write_png(&film, &png_path, exposure)?;
-    let mut previews = Vec::new();
-    for (i, aov) in film.aovs.iter().enumerate().filter(|(_, a)| a.preview) {
-        let path = exr_path.with_extension(format!("{}.png", aov.name));
-        image_io::write_aov_png(&film, i, &path)?;
-        previews.push(path.display().to_string());
-    }
+    let metadata = lumis::render_files::metadata(
+        &args.scene.display().to_string(),
+        integrator,
+        loaded.scene.spp,
+        loaded.scene.seed,
+        &stats,
+    );
+    let written = lumis::render_files::write(&film, &exr_path, exposure, &metadata)?;
 
     if stats.partial() {
         eprintln!(
@@ -377,15 +346,12 @@ fn render(args: RenderArgs) -> Result<()> {
             secs,
             stats.camera_samples as f64 / secs / 1e6,
             stats.rays as f64 / secs / 1e6,
-            [
-                vec![
-                    exr_path.display().to_string(),
-                    png_path.display().to_string()
-                ],
-                previews
-            ]
-            .concat()
-            .join(", ")
+            written
+                .all()
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     Ok(())
