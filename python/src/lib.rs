@@ -138,7 +138,10 @@ fn build(
     })
 }
 
-/// Reads, parses and builds the scene file at `path`, with overrides applied.
+/// Reads, parses and builds the RON scene at `path`, as `lumis render` does.
+///
+/// overrides: as `--set`, a dict {"film.width": 64, "integrator.type": "alpha"} or a list of
+/// "path=value" strings. Raises SceneError with the CLI's `file[:line:col]: message`.
 #[pyfunction]
 #[pyo3(signature = (path, overrides=None))]
 fn load(py: Python<'_>, path: PathBuf, overrides: Option<&Bound<'_, PyAny>>) -> PyResult<Scene> {
@@ -163,7 +166,11 @@ fn load(py: Python<'_>, path: PathBuf, overrides: Option<&Bound<'_, PyAny>>) -> 
     })
 }
 
-/// Builds a scene from a dict with the fields of the RON format.
+/// Builds a scene from a dict with the fields of the RON format (docs/scene-format.md).
+///
+/// Structs and maps are dicts, tuples and lists are tuples or lists, plugins are dicts with a
+/// "type"; a None value leaves the field out. Relative asset paths are resolved against
+/// base_dir (default: the current directory). Raises SceneError (file `<dict>`) or TypeError.
 #[pyfunction]
 #[pyo3(signature = (scene, base_dir=None))]
 fn load_dict(
@@ -190,6 +197,14 @@ type Outcome = Result<Result<(Film, RenderStats), String>, String>;
 
 #[pymethods]
 impl Scene {
+    /// Renders the scene; returns a RenderResult with every layer as a float32 numpy array.
+    ///
+    /// integrator: plugin name (default the scene's; its parameters are kept, as with
+    /// `--set integrator.type=NAME`); spp, seed: default the scene's `sampler` values; threads:
+    /// default one per core; **params: integrator parameters (`samples=64`, `aovs=["alpha"]`;
+    /// None removes one). The GIL is released while rendering; Ctrl-C stops the render and
+    /// raises KeyboardInterrupt (the partial image is discarded). Raises PluginError for an
+    /// unknown integrator or refused parameters, RenderError if the render cannot run.
     #[pyo3(signature = (integrator=None, spp=None, seed=None, threads=None, **params))]
     fn render(
         &self,
