@@ -2,12 +2,12 @@
 
 mod interrupt;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use lumis::image_io::{self, FileWriter, Metadata};
+use lumis::image_io;
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 #[derive(Parser)]
@@ -322,16 +322,7 @@ fn render(args: RenderArgs) -> Result<()> {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
     let exr_path = args.output.unwrap_or_else(|| loaded.scene.output.clone());
-    if exr_path
-        .extension()
-        .is_none_or(|e| !e.eq_ignore_ascii_case("exr"))
-    {
-        bail!(
-            "the output `{}` must end in .exr (the PNG preview is written beside it)",
-            exr_path.display()
-        );
-    }
-    let png_path = exr_path.with_extension("png");
+    lumis::render_files::check_exr_path(&exr_path).map_err(anyhow::Error::msg)?;
     let exposure = args.exposure.unwrap_or(loaded.scene.exposure);
     // Every output is checked before the render, not found unwritable after it.
     let preview_paths: Vec<PathBuf> = loaded
@@ -341,6 +332,7 @@ fn render(args: RenderArgs) -> Result<()> {
         .filter(|a| a.preview)
         .map(|a| exr_path.with_extension(format!("{}.png", a.name)))
         .collect();
+    let png_path = exr_path.with_extension("png");
     for path in [&exr_path, &png_path].into_iter().chain(&preview_paths) {
         image_io::check_writable(path)?;
     }
@@ -397,47 +389,14 @@ fn render(args: RenderArgs) -> Result<()> {
     bar.finish_and_clear();
 
     let integrator = &loaded.description.integrator;
-    let mut metadata: Metadata = vec![
-        ("scene".into(), args.scene.display().to_string()),
-        ("integrator".into(), integrator.kind.clone()),
-        ("spp".into(), loaded.scene.spp.to_string()),
-        ("seed".into(), loaded.scene.seed.to_string()),
-        ("partial".into(), stats.partial().to_string()),
-        (
-            "pixels".into(),
-            format!("{} of {}", stats.pixels_done, stats.pixels_total),
-        ),
-        (
-            "tiles".into(),
-            format!("{} of {}", stats.tiles_done, stats.tiles_total),
-        ),
-    ];
-    metadata.extend(integrator.params.iter().map(|(k, v)| {
-        (
-            format!("integrator.{k}"),
-            ron::to_string(v).unwrap_or_default(),
-        )
-    }));
-    // All files or none: the EXR is not left behind when its PNG cannot be written.
-    let mut outputs: Vec<(&Path, FileWriter<'_>)> = vec![
-        (&exr_path, image_io::exr_writer(&film, &metadata)),
-        (&png_path, image_io::png_writer(&film, exposure)),
-    ];
-    let previews: Vec<(usize, PathBuf)> = film
-        .aovs
-        .iter()
-        .enumerate()
-        .filter(|(_, a)| a.preview)
-        .map(|(i, a)| (i, exr_path.with_extension(format!("{}.png", a.name))))
-        .collect();
-    for (i, path) in &previews {
-        outputs.push((path, image_io::aov_png_writer(&film, *i)));
-    }
-    image_io::write_all_atomically(outputs)?;
-    let previews: Vec<String> = previews
-        .iter()
-        .map(|(_, p)| p.display().to_string())
-        .collect();
+    let metadata = lumis::render_files::metadata(
+        &args.scene.display().to_string(),
+        integrator,
+        loaded.scene.spp,
+        loaded.scene.seed,
+        &stats,
+    );
+    let written = lumis::render_files::write(&film, &exr_path, exposure, &metadata)?;
 
     if stats.partial() {
         eprintln!(
@@ -463,15 +422,12 @@ fn render(args: RenderArgs) -> Result<()> {
             secs,
             stats.camera_samples as f64 / secs / 1e6,
             stats.rays as f64 / secs / 1e6,
-            [
-                vec![
-                    exr_path.display().to_string(),
-                    png_path.display().to_string()
-                ],
-                previews
-            ]
-            .concat()
-            .join(", ")
+            written
+                .all()
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     Ok(())

@@ -18,6 +18,7 @@ pub mod output;
 pub mod params;
 pub mod registry;
 pub mod render;
+pub mod render_files;
 pub mod sampler;
 pub mod scene;
 

@@ -1,0 +1,682 @@
+//! `lumis._lumis`: the Python extension module behind the `lumis` package (python/lumis/).
+//!
+//! Scenes are loaded and built by lumis-core exactly as the CLI does, renders run on a Rust
+//! thread with the GIL released while the calling thread polls for Python signals (so Ctrl-C in a
+//! notebook cancels the render), and the output files are written by
+//! [`lumis_core::render_files`], the CLI's own writer. No panic reaches Python: every entry point
+//! catches unwinding and raises a `lumis.LumisError` instead.
+
+mod convert;
+
+use lumis_core::film::Film;
+use lumis_core::image_io::Metadata;
+use lumis_core::params::ParamSpec;
+use lumis_core::registry::{self, BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo};
+use lumis_core::render::RenderStats;
+use lumis_core::scene::description::{PluginSpec, SceneDescription};
+use lumis_core::{render_files, scene};
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray3};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyException, PyKeyError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError, mpsc};
+use std::time::{Duration, Instant};
+
+create_exception!(
+    lumis,
+    LumisError,
+    PyException,
+    "Base class of every error lumis raises."
+);
+create_exception!(
+    lumis,
+    SceneError,
+    LumisError,
+    "A problem with a scene or a file it refers to; `str()` is the CLI's `file[:line:col]: message`."
+);
+create_exception!(
+    lumis,
+    PluginError,
+    LumisError,
+    "An unknown plugin, or parameters a plugin refuses (given to `Scene.render`)."
+);
+create_exception!(
+    lumis,
+    RenderError,
+    LumisError,
+    "The render could not run (threads could not start, or an internal error)."
+);
+create_exception!(
+    lumis,
+    OutputError,
+    LumisError,
+    "An output file could not be written."
+);
+
+/// How often the calling thread wakes up during a render to let Python handle signals.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// The message of a caught panic.
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
+/// Runs `f`, turning a panic into an error message (a bug in lumis, never the user's fault).
+fn catch_panic<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    catch_unwind(AssertUnwindSafe(f)).map_err(|payload| {
+        format!(
+            "internal error: {} (a bug in lumis; please report it with the scene)",
+            panic_message(payload.as_ref())
+        )
+    })
+}
+
+/// Runs an entry point's body so that a panic becomes a `LumisError`.
+fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    catch_panic(f).unwrap_or_else(|message| Err(LumisError::new_err(message)))
+}
+
+/// `lumis.SceneError` carrying the CLI's message and the file and position as attributes.
+fn scene_error(py: Python<'_>, e: &lumis_core::error::SceneError) -> PyErr {
+    let err = SceneError::new_err(e.to_string());
+    let value = err.value(py);
+    let (line, column) = e.position.unzip();
+    // Setting attributes on a fresh exception object cannot fail short of memory exhaustion,
+    // which Python reports itself.
+    let _ = value.setattr("file", e.file.display().to_string());
+    let _ = value.setattr("line", line);
+    let _ = value.setattr("column", column);
+    let _ = value.setattr("message", e.message.clone());
+    err
+}
+
+fn output_error(py: Python<'_>, e: &lumis_core::image_io::OutputError) -> PyErr {
+    let err = OutputError::new_err(e.to_string());
+    let _ = err.value(py).setattr("path", e.path.display().to_string());
+    err
+}
+
+/// A built scene, ready to render any number of times.
+#[pyclass(module = "lumis", frozen)]
+struct Scene {
+    /// The scene as the user named it (the path as given, or `<dict>`): the EXR's `scene`.
+    label: String,
+    /// The path messages and relative asset paths go by.
+    path: PathBuf,
+    description: SceneDescription,
+    /// Renders of one scene run one at a time: each sets the scene's spp and seed.
+    built: Arc<Mutex<scene::Scene>>,
+    load_time: f64,
+}
+
+fn build(
+    py: Python<'_>,
+    label: String,
+    path: PathBuf,
+    description: SceneDescription,
+) -> PyResult<Scene> {
+    let start = Instant::now();
+    let loaded = py
+        .detach(|| catch_panic(|| scene::load::build_scene(description, &path)))
+        .map_err(LumisError::new_err)?
+        .map_err(|e| scene_error(py, &e))?;
+    Ok(Scene {
+        label,
+        path,
+        description: loaded.description,
+        built: Arc::new(Mutex::new(loaded.scene)),
+        load_time: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Reads, parses and builds the RON scene at `path`, as `lumis render` does.
+///
+/// overrides: as `--set`, a dict {"film.width": 64, "integrator.type": "alpha"} or a list of
+/// "path=value" strings. Raises SceneError with the CLI's `file[:line:col]: message`.
+#[pyfunction]
+#[pyo3(signature = (path, overrides=None))]
+fn load(py: Python<'_>, path: PathBuf, overrides: Option<&Bound<'_, PyAny>>) -> PyResult<Scene> {
+    guarded(|| {
+        let overrides = match overrides {
+            Some(o) => convert::overrides(o)?,
+            None => Vec::new(),
+        };
+        let start = Instant::now();
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            scene_error(
+                py,
+                &lumis_core::error::SceneError::new(&path, format!("cannot read scene file: {e}")),
+            )
+        })?;
+        let description = scene::load::parse_description(&path, &text, &overrides)
+            .map_err(|e| scene_error(py, &e))?;
+        let parse_time = start.elapsed().as_secs_f64();
+        let mut scene = build(py, path.display().to_string(), path, description)?;
+        scene.load_time += parse_time;
+        Ok(scene)
+    })
+}
+
+/// Builds a scene from a dict with the fields of the RON format (docs/scene-format.md).
+///
+/// Structs and maps are dicts, tuples and lists are tuples or lists, plugins are dicts with a
+/// "type"; a None value leaves the field out. Relative asset paths are resolved against
+/// base_dir (default: the current directory). Raises SceneError (file `<dict>`) or TypeError.
+#[pyfunction]
+#[pyo3(signature = (scene, base_dir=None))]
+fn load_dict(
+    py: Python<'_>,
+    scene: &Bound<'_, PyDict>,
+    base_dir: Option<PathBuf>,
+) -> PyResult<Scene> {
+    guarded(|| {
+        let label = "<dict>";
+        let path = base_dir.unwrap_or_default().join(label);
+        let value = convert::to_value(scene.as_any(), "scene")?;
+        let description: SceneDescription = value.into_rust().map_err(|e| {
+            scene_error(
+                py,
+                &lumis_core::error::SceneError::new(&path, e.to_string()),
+            )
+        })?;
+        build(py, label.to_string(), path, description)
+    })
+}
+
+/// What a render thread hands back.
+type Outcome = Result<Result<(Film, RenderStats), String>, String>;
+
+#[pymethods]
+impl Scene {
+    /// Renders the scene; returns a RenderResult with every layer as a float32 numpy array.
+    ///
+    /// integrator: plugin name (default the scene's; its parameters are kept, as with
+    /// `--set integrator.type=NAME`); spp, seed: default the scene's `sampler` values; threads:
+    /// default one per core; **params: integrator parameters (`samples=64`, `aovs=["alpha"]`;
+    /// None removes one). The GIL is released while rendering; Ctrl-C stops the render and
+    /// raises KeyboardInterrupt (the partial image is discarded). Raises PluginError for an
+    /// unknown integrator or refused parameters, RenderError if the render cannot run.
+    #[pyo3(signature = (integrator=None, spp=None, seed=None, threads=None, **params))]
+    fn render(
+        &self,
+        py: Python<'_>,
+        integrator: Option<String>,
+        spp: Option<u32>,
+        seed: Option<u64>,
+        threads: Option<usize>,
+        params: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<RenderResult> {
+        guarded(|| {
+            if spp == Some(0) {
+                return Err(PyValueError::new_err("spp must be at least 1"));
+            }
+            let spp = spp.unwrap_or(self.description.sampler.spp);
+            let seed = seed.unwrap_or(self.description.sampler.seed);
+            let mut spec = self.description.integrator.clone();
+            if let Some(kind) = integrator {
+                spec.kind = kind;
+            }
+            if let Some(params) = params {
+                for (key, value) in params.iter() {
+                    let key: String = key.extract()?;
+                    if value.is_none() {
+                        spec.params.remove(&key);
+                    } else {
+                        let value = convert::to_value(&value, &key)?;
+                        spec.params.insert(key, value);
+                    }
+                }
+            }
+            let base = self.path.parent().unwrap_or(Path::new("")).to_path_buf();
+            let mut integrator = scene::load::build_integrator(&spec, &base)
+                .map_err(|e| PluginError::new_err(format!("{}: {e}", self.path.display())))?;
+
+            let cancel = Arc::new(AtomicBool::new(false));
+            let (sender, receiver) = mpsc::channel::<Outcome>();
+            let built = self.built.clone();
+            let thread_cancel = cancel.clone();
+            let worker = std::thread::Builder::new()
+                .name("lumis-render".into())
+                .spawn(move || {
+                    let outcome = catch_panic(|| {
+                        let mut scene = built.lock().unwrap_or_else(PoisonError::into_inner);
+                        scene.spp = spp;
+                        scene.seed = seed;
+                        integrator.preprocess(&scene);
+                        lumis_core::render::render_cancellable(
+                            &scene,
+                            integrator.as_ref(),
+                            threads.unwrap_or(0),
+                            &|_| {},
+                            &thread_cancel,
+                        )
+                        .map_err(|e| format!("cannot start the render threads: {e}"))
+                    });
+                    // The receiver is gone only if the caller stopped waiting (interrupted).
+                    let _ = sender.send(outcome);
+                })
+                .map_err(|e| {
+                    RenderError::new_err(format!("cannot start the render thread: {e}"))
+                })?;
+
+            // `detach` needs a shareable receiver; only this thread ever locks it.
+            let receiver = Mutex::new(receiver);
+            let outcome = loop {
+                let received = py.detach(|| {
+                    receiver
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .recv_timeout(SIGNAL_POLL)
+                });
+                match received {
+                    Ok(outcome) => break outcome,
+                    Err(mpsc::RecvTimeoutError::Timeout) => {
+                        if let Err(interrupt) = py.check_signals() {
+                            // Ctrl-C (or any signal handler that raised): stop the render within
+                            // a camera sample per thread, discard it and re-raise.
+                            cancel.store(true, Ordering::Relaxed);
+                            let _ = py.detach(|| worker.join());
+                            return Err(interrupt);
+                        }
+                    }
+                    Err(mpsc::RecvTimeoutError::Disconnected) => {
+                        break Err("the render thread stopped without a result".into());
+                    }
+                }
+            };
+            let _ = py.detach(|| worker.join());
+            let (film, stats) = outcome
+                .map_err(LumisError::new_err)?
+                .map_err(RenderError::new_err)?;
+            RenderResult::new(py, self, film, stats, spec, spp, seed)
+        })
+    }
+
+    /// The scene as named when loaded: its path as given, or `<dict>`.
+    #[getter]
+    fn name(&self) -> &str {
+        &self.label
+    }
+
+    /// Seconds spent reading, parsing and building the scene.
+    #[getter]
+    fn load_time(&self) -> f64 {
+        self.load_time
+    }
+
+    /// Size of the full film, (width, height).
+    #[getter]
+    fn size(&self) -> (u32, u32) {
+        (self.description.film.width, self.description.film.height)
+    }
+
+    /// Camera samples per pixel and seed the scene asks for.
+    #[getter]
+    fn spp(&self) -> u32 {
+        self.description.sampler.spp
+    }
+
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.description.sampler.seed
+    }
+
+    /// The scene's integrator: {"type": name, parameter: value, ...}.
+    #[getter]
+    fn integrator<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        plugin_spec_dict(py, &self.description.integrator)
+    }
+
+    fn __repr__(&self) -> String {
+        let film = &self.description.film;
+        format!(
+            "<lumis.Scene {} {}x{}, {} spp, integrator {}>",
+            self.label,
+            film.width,
+            film.height,
+            self.description.sampler.spp,
+            self.description.integrator.kind
+        )
+    }
+}
+
+fn plugin_spec_dict<'py>(py: Python<'py>, spec: &PluginSpec) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("type", &spec.kind)?;
+    for (key, value) in &spec.params {
+        dict.set_item(key, convert::from_value(py, value)?)?;
+    }
+    Ok(dict)
+}
+
+/// One output layer: its name, channel names and pixels.
+struct Layer {
+    name: String,
+    channels: Vec<String>,
+    pixels: Py<PyArray3<f32>>,
+}
+
+/// A finished render: the film as numpy arrays by layer name, its statistics, and the means to
+/// write the CLI's files.
+#[pyclass(module = "lumis", frozen)]
+struct RenderResult {
+    film: Film,
+    stats: RenderStats,
+    metadata: Metadata,
+    exposure: f32,
+    layers: Vec<Layer>,
+    scene: String,
+    integrator: PluginSpec,
+    spp: u32,
+    seed: u64,
+}
+
+/// A read-only (height, width, channels) float32 array from per-pixel interleaved values.
+fn array(
+    py: Python<'_>,
+    height: usize,
+    width: usize,
+    channels: usize,
+    values: Vec<f32>,
+) -> PyResult<Py<PyArray3<f32>>> {
+    let array = Array3::from_shape_vec((height, width, channels), values)
+        .map_err(|e| LumisError::new_err(format!("internal error: layer shape: {e}")))?
+        .into_pyarray(py);
+    let kwargs = PyDict::new(py);
+    kwargs.set_item("write", false)?;
+    array.call_method("setflags", (), Some(&kwargs))?;
+    Ok(array.unbind())
+}
+
+impl RenderResult {
+    fn new(
+        py: Python<'_>,
+        scene: &Scene,
+        film: Film,
+        stats: RenderStats,
+        integrator: PluginSpec,
+        spp: u32,
+        seed: u64,
+    ) -> PyResult<Self> {
+        let (width, height) = (film.window.width as usize, film.window.height as usize);
+        let mut layers = vec![Layer {
+            name: "color".into(),
+            channels: ["R", "G", "B"].map(String::from).to_vec(),
+            pixels: array(
+                py,
+                height,
+                width,
+                3,
+                film.color.iter().flat_map(|c| c.to_array()).collect(),
+            )?,
+        }];
+        for aov in &film.aovs {
+            let Some(layer) = film.aov(&aov.name) else {
+                continue;
+            };
+            let channels = layer.channels();
+            let values = (0..width * height)
+                .flat_map(|i| channels.iter().map(move |c| c[i]))
+                .collect();
+            layers.push(Layer {
+                name: aov.name.clone(),
+                channels: aov.channels.clone(),
+                pixels: array(py, height, width, channels.len(), values)?,
+            });
+        }
+        let metadata = render_files::metadata(&scene.label, &integrator, spp, seed, &stats);
+        Ok(RenderResult {
+            exposure: scene.description.film.exposure,
+            film,
+            stats,
+            metadata,
+            layers,
+            scene: scene.label.clone(),
+            integrator,
+            spp,
+            seed,
+        })
+    }
+
+    fn layer_names(&self) -> Vec<&str> {
+        self.layers.iter().map(|l| l.name.as_str()).collect()
+    }
+}
+
+#[pymethods]
+impl RenderResult {
+    fn __getitem__(&self, py: Python<'_>, name: &str) -> PyResult<Py<PyArray3<f32>>> {
+        self.layers
+            .iter()
+            .find(|l| l.name == name)
+            .map(|l| l.pixels.clone_ref(py))
+            .ok_or_else(|| {
+                PyKeyError::new_err(format!(
+                    "no layer `{name}`{}; this render has: {}",
+                    lumis_core::error::did_you_mean(name, self.layer_names()),
+                    self.layer_names().join(", ")
+                ))
+            })
+    }
+
+    fn __contains__(&self, name: &str) -> bool {
+        self.layers.iter().any(|l| l.name == name)
+    }
+
+    fn __len__(&self) -> usize {
+        self.layers.len()
+    }
+
+    fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        PyList::new(py, self.layer_names())?
+            .try_iter()
+            .map(Bound::into_any)
+    }
+
+    fn keys(&self) -> Vec<&str> {
+        self.layer_names()
+    }
+
+    /// Every layer by name, colour first: {name: array of shape (height, width, channels)}.
+    #[getter]
+    fn layers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new(py);
+        for layer in &self.layers {
+            dict.set_item(&layer.name, layer.pixels.clone_ref(py))?;
+        }
+        Ok(dict)
+    }
+
+    /// The channel names of every layer: {"color": ["R", "G", "B"], "alpha": ["combined", ...]}.
+    #[getter]
+    fn channels<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new(py);
+        for layer in &self.layers {
+            dict.set_item(&layer.name, &layer.channels)?;
+        }
+        Ok(dict)
+    }
+
+    /// Render time (wall clock) in seconds, as in the CLI's summary line.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.stats.wall_time.as_secs_f64()
+    }
+
+    #[getter]
+    fn camera_samples(&self) -> u64 {
+        self.stats.camera_samples
+    }
+
+    #[getter]
+    fn rays(&self) -> u64 {
+        self.stats.rays
+    }
+
+    #[getter]
+    fn threads(&self) -> usize {
+        self.stats.threads
+    }
+
+    #[getter]
+    fn pixels(&self) -> u64 {
+        self.stats.pixels_total
+    }
+
+    #[getter]
+    fn tiles(&self) -> u32 {
+        self.stats.tiles_total
+    }
+
+    #[getter]
+    fn samples_per_second(&self) -> f64 {
+        self.stats.camera_samples as f64 / self.stats.wall_time.as_secs_f64()
+    }
+
+    #[getter]
+    fn rays_per_second(&self) -> f64 {
+        self.stats.rays as f64 / self.stats.wall_time.as_secs_f64()
+    }
+
+    #[getter]
+    fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// The integrator that rendered: {"type": name, parameter: value, ...}.
+    #[getter]
+    fn integrator<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        plugin_spec_dict(py, &self.integrator)
+    }
+
+    /// The `lumis` metadata of the EXR header, {key: value}.
+    #[getter]
+    fn metadata(&self) -> Vec<(String, String)> {
+        self.metadata.clone()
+    }
+
+    /// Writes the EXR, its PNG preview and the AOV previews exactly as `lumis render -o path`.
+    #[pyo3(signature = (path, exposure=None))]
+    fn write(&self, py: Python<'_>, path: PathBuf, exposure: Option<f32>) -> PyResult<Vec<String>> {
+        guarded(|| {
+            let exposure = exposure.unwrap_or(self.exposure);
+            if !exposure.is_finite() {
+                return Err(PyValueError::new_err("exposure must be finite"));
+            }
+            let written = py
+                .detach(|| render_files::write(&self.film, &path, exposure, &self.metadata))
+                .map_err(|e| output_error(py, &e))?;
+            Ok(written
+                .all()
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect())
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        let window = self.film.window;
+        format!(
+            "<lumis.RenderResult {} ({}x{}, {} spp, {}, {} threads): rendered in {:.3} s, {:.3} M samples/s, {:.2} M rays/s; layers {}>",
+            self.scene,
+            window.width,
+            window.height,
+            self.spp,
+            self.integrator.kind,
+            self.stats.threads,
+            self.time(),
+            self.samples_per_second() / 1e6,
+            self.rays_per_second() / 1e6,
+            self.layer_names().join(", ")
+        )
+    }
+}
+
+fn param_dict<'py>(py: Python<'py>, spec: &ParamSpec) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("name", spec.name)?;
+    dict.set_item("type", spec.type_name())?;
+    dict.set_item("default", spec.default_text())?;
+    dict.set_item("valid", spec.range_text())?;
+    dict.set_item("unit", spec.unit)?;
+    dict.set_item("description", spec.description)?;
+    Ok(dict)
+}
+
+fn plugins_of<'py, P: PluginInfo + lumis_core::inventory::Collect>(
+    py: Python<'py>,
+    list: &Bound<'py, PyList>,
+) -> PyResult<()> {
+    for plugin in registry::plugins::<P>() {
+        let dict = PyDict::new(py);
+        dict.set_item("kind", P::KIND)?;
+        dict.set_item("name", plugin.name())?;
+        dict.set_item("description", plugin.description())?;
+        let params = PyList::empty(py);
+        for spec in plugin.params() {
+            params.append(param_dict(py, spec)?)?;
+        }
+        dict.set_item("parameters", params)?;
+        list.append(dict)?;
+    }
+    Ok(())
+}
+
+/// Every registered plugin (BSDFs, emitters, integrators) with its parameters.
+#[pyfunction]
+fn plugins(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    guarded(|| {
+        let list = PyList::empty(py);
+        plugins_of::<BsdfPlugin>(py, &list)?;
+        plugins_of::<EmitterPlugin>(py, &list)?;
+        plugins_of::<IntegratorPlugin>(py, &list)?;
+        Ok(list)
+    })
+}
+
+#[pymodule]
+fn _lumis(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // Keep every built-in plugin crate (and so its registrations) in the extension.
+    lumis_bsdfs::link();
+    lumis_emitters::link();
+    lumis_integrators::link();
+    let py = m.py();
+    m.add("LumisError", py.get_type::<LumisError>())?;
+    m.add("SceneError", py.get_type::<SceneError>())?;
+    m.add("PluginError", py.get_type::<PluginError>())?;
+    m.add("RenderError", py.get_type::<RenderError>())?;
+    m.add("OutputError", py.get_type::<OutputError>())?;
+    m.add_class::<Scene>()?;
+    m.add_class::<RenderResult>()?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(load_dict, m)?)?;
+    m.add_function(wrap_pyfunction!(plugins, m)?)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn panics_become_messages() {
+        let caught = catch_panic(|| -> u32 { panic!("boom at {}", 3) });
+        let message = caught.expect_err("the panic is caught");
+        assert!(message.contains("internal error: boom at 3"), "{message}");
+        assert_eq!(catch_panic(|| 7), Ok(7));
+    }
+}
