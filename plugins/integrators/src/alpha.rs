@@ -166,15 +166,18 @@ pub struct SecondOrderAlpha {
     pub clamp: [f64; 2],
 }
 
-impl Allocation for SecondOrderAlpha {
-    fn estimate<W: Weighting + ?Sized>(
-        &self,
+impl Mode {
+    /// Runs the two phases of the mode: samples at α = ½ seen by `observer`, then samples at
+    /// the α that `choose` takes from them (clamped by the caller's rule).
+    pub fn estimate<W: Weighting + ?Sized, O: Observer>(
+        self,
         sampling: &mut LightSampling,
         weighting: &W,
+        observer: &mut O,
+        choose: impl FnOnce(&LightSampling, &O) -> f64,
     ) -> LightEstimate {
         let n = sampling.samples();
-        let mut moments = SecondOrderMoments::default();
-        match self.mode {
+        match self {
             Mode::Integrated { alpha_samples } => {
                 let m = alpha_samples.min(n);
                 let rest = n - m;
@@ -183,13 +186,9 @@ impl Allocation for SecondOrderAlpha {
                     counted: true,
                     measured: rest < 2,
                 };
-                let first = sampling.phase(
-                    SampleSplit::new(0.5, m),
-                    first_role,
-                    weighting,
-                    &mut moments,
-                );
-                let alpha = moments.alpha(self.clamp);
+                let first =
+                    sampling.phase(SampleSplit::new(0.5, m), first_role, weighting, observer);
+                let alpha = choose(sampling, observer);
                 if rest == 0 {
                     return LightEstimate {
                         value: first,
@@ -200,34 +199,36 @@ impl Allocation for SecondOrderAlpha {
                     counted: true,
                     measured: rest >= 2,
                 };
-                let second = sampling.phase(
-                    SampleSplit::new(alpha, rest),
-                    second_role,
-                    weighting,
-                    &mut (),
-                );
+                let split = SampleSplit::new(alpha, rest);
+                let second = sampling.phase(split, second_role, weighting, &mut ());
                 LightEstimate {
                     value: (first * m as f32 + second * rest as f32) / n as f32,
                     alpha,
                 }
             }
             Mode::Preprocessed { alpha_samples } => {
-                sampling.phase(
-                    SampleSplit::new(0.5, alpha_samples),
-                    PhaseRole::PILOT,
-                    weighting,
-                    &mut moments,
-                );
-                let alpha = moments.alpha(self.clamp);
-                let value = sampling.phase(
-                    SampleSplit::new(alpha, n),
-                    PhaseRole::ESTIMATE,
-                    weighting,
-                    &mut (),
-                );
+                let pilot = SampleSplit::new(0.5, alpha_samples);
+                sampling.phase(pilot, PhaseRole::PILOT, weighting, observer);
+                let alpha = choose(sampling, observer);
+                let split = SampleSplit::new(alpha, n);
+                let value = sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ());
                 LightEstimate { value, alpha }
             }
         }
+    }
+}
+
+impl Allocation for SecondOrderAlpha {
+    fn estimate<W: Weighting + ?Sized>(
+        &self,
+        sampling: &mut LightSampling,
+        weighting: &W,
+    ) -> LightEstimate {
+        let mut moments = SecondOrderMoments::default();
+        self.mode
+            .estimate(sampling, weighting, &mut moments, |_, moments| {
+                moments.alpha(self.clamp)
+            })
     }
 }
 

@@ -26,12 +26,11 @@
 //! wherever one did. Unbiased in both modes: α depends only on samples the estimate at α does
 //! not reuse.
 
-use crate::allocation::{Allocation, LightEstimate, LightSampling, SampleSplit};
+use crate::allocation::{Allocation, LightEstimate, LightSampling};
 use crate::alpha::Mode;
 use crate::balance::Balance;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::moments::{Objective, PilotSamples};
-use crate::phase::PhaseRole;
 use crate::weighting::{PerSample, Weighting};
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -155,44 +154,10 @@ impl<R: AlphaRule> Allocation for PilotAlpha<R> {
         sampling: &mut LightSampling,
         weighting: &W,
     ) -> LightEstimate {
-        let n = sampling.samples();
-        match self.mode {
-            Mode::Integrated { alpha_samples } => {
-                let m = alpha_samples.min(n);
-                let rest = n - m;
-                let first_role = PhaseRole {
-                    counted: true,
-                    measured: rest < 2,
-                };
-                let first =
-                    sampling.phase(SampleSplit::new(0.5, m), first_role, weighting, &mut ());
-                let alpha = self.alpha_of_last_phase(sampling);
-                if rest == 0 {
-                    return LightEstimate {
-                        value: first,
-                        alpha,
-                    };
-                }
-                let second_role = PhaseRole {
-                    counted: true,
-                    measured: rest >= 2,
-                };
-                let split = SampleSplit::new(alpha, rest);
-                let second = sampling.phase(split, second_role, weighting, &mut ());
-                LightEstimate {
-                    value: (first * m as f32 + second * rest as f32) / n as f32,
-                    alpha,
-                }
-            }
-            Mode::Preprocessed { alpha_samples } => {
-                let pilot = SampleSplit::new(0.5, alpha_samples);
-                sampling.phase(pilot, PhaseRole::PILOT, weighting, &mut ());
-                let alpha = self.alpha_of_last_phase(sampling);
-                let split = SampleSplit::new(alpha, n);
-                let value = sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ());
-                LightEstimate { value, alpha }
-            }
-        }
+        self.mode
+            .estimate(sampling, weighting, &mut (), |sampling, _| {
+                self.alpha_of_last_phase(sampling)
+            })
     }
 
     fn preprocess(&mut self, scene: &Scene) {
