@@ -238,8 +238,9 @@ fn same_mean_scene(index: usize) -> (String, Option<tempfile::TempDir>, PathBuf)
 }
 
 /// Every registered integrator with its defaults, and the paper's method in its other mode;
-/// under the glossy scene's environment map also the map's MIS compensation, with light sampling alone (whose
-/// unbiasedness the compensation's floor keeps) and two MIS methods.
+/// under the glossy scene's environment map also the map's MIS compensation under two MIS
+/// methods. (Light sampling alone from a compensated map is left to the emitter χ² tests: its
+/// rare dark directions make its variance estimate too heavy-tailed to promise the 2 % power.)
 fn same_mean_configurations(env_map: bool) -> Vec<(String, Vec<String>)> {
     let mut configurations: Vec<(String, Vec<String>)> = integrators()
         .into_iter()
@@ -254,7 +255,7 @@ fn same_mean_configurations(env_map: bool) -> Vec<(String, Vec<String>)> {
         ],
     ));
     if env_map {
-        for name in [light::NAME, balance::NAME, alpha::NAME] {
+        for name in [balance::NAME, alpha::NAME] {
             configurations.push((
                 format!("{name}, compensated map"),
                 vec![
