@@ -292,7 +292,6 @@ mod tests {
     use crate::allocation::SampleSplit;
     use crate::estimator::SampleRecord;
     use crate::phase::PhaseRole;
-    use glam::UVec2;
 
     /// Shows the tally a phase of `n_bsdf + n_light` samples whose one-sample estimates Y are
     /// `values` (grey contributions Y / n).
@@ -302,12 +301,7 @@ mod tests {
             n_light: values.len() as u32 - n_bsdf,
         };
         let records = vec![SampleRecord::default(); values.len()];
-        let phase = Phase {
-            pixel: UVec2::ZERO,
-            light: 0,
-            split,
-            records: &records,
-        };
+        let phase = Phase::of(split, &records);
         let n = values.len() as f32;
         let contributions: Vec<Rgb> = values.iter().map(|&y| Rgb::splat(y / n)).collect();
         tally.observe(&phase, &contributions, role);

@@ -351,15 +351,6 @@ mod tests {
     use super::*;
     use lumis_core::math::Rgb;
 
-    fn record(f: f32, p_bsdf: f32, p_light: f32) -> SampleRecord {
-        SampleRecord {
-            f: Rgb::splat(f),
-            p_bsdf,
-            p_light,
-            delta: false,
-        }
-    }
-
     /// A pilot at α = ½ whose samples follow a synthetic integrand on [0, 1]: f = 1 on [0, w],
     /// p_B uniform, p_L a box of height 1/w on [0, w] (concentrated light), half the samples
     /// from each. Exact second moment: ∫ f²/q_α = w² / (α w + 1 − α) (on [0, w], q_α = α + (1 −
@@ -369,7 +360,7 @@ mod tests {
         for i in 0..n {
             let x = (i as f32 + 0.5) / n as f32;
             let inside = x < w;
-            records.push(record(
+            records.push(SampleRecord::grey(
                 if inside { 1.0 } else { 0.0 },
                 1.0,
                 if inside { 1.0 / w } else { 0.0 },
@@ -377,7 +368,11 @@ mod tests {
         }
         for i in 0..n {
             let x = w * (i as f32 + 0.5) / n as f32;
-            records.push(record(if x < w { 1.0 } else { 0.0 }, 1.0, 1.0 / w));
+            records.push(SampleRecord::grey(
+                if x < w { 1.0 } else { 0.0 },
+                1.0,
+                1.0 / w,
+            ));
         }
         records
     }
@@ -416,11 +411,11 @@ mod tests {
         for i in 0..n {
             let u = (i as f32 + 0.5) / n as f32;
             let x = u.sqrt(); // p_B = 2x
-            records.push(record(x + 0.2, 2.0 * x, 1.0));
+            records.push(SampleRecord::grey(x + 0.2, 2.0 * x, 1.0));
         }
         for i in 0..n {
             let x = (i as f32 + 0.5) / n as f32;
-            records.push(record(x + 0.2, 2.0 * x, 1.0));
+            records.push(SampleRecord::grey(x + 0.2, 2.0 * x, 1.0));
         }
         let pilot = PilotSamples::from_records(&records, n as u32, n as u32);
         let exact_m = |alpha: f64| {
@@ -451,10 +446,13 @@ mod tests {
 
     #[test]
     fn uninformative_pilots_give_no_alpha() {
-        let same = [record(1.0, 2.0, 2.0), record(0.5, 1.0, 1.0)];
+        let same = [
+            SampleRecord::grey(1.0, 2.0, 2.0),
+            SampleRecord::grey(0.5, 1.0, 1.0),
+        ];
         let pilot = PilotSamples::from_records(&same, 1, 1);
         assert_eq!(pilot.exact_minimum([0.0, 1.0]), None);
-        let black = [record(0.0, 2.0, 0.0), SampleRecord::default()];
+        let black = [SampleRecord::grey(0.0, 2.0, 0.0), SampleRecord::default()];
         let pilot = PilotSamples::from_records(&black, 1, 1);
         assert_eq!(pilot.minimise(Objective::Stratified, [0.0, 1.0]), None);
     }
@@ -486,11 +484,11 @@ mod tests {
         let mut records = Vec::new();
         // BSDF samples: a broad dim region, density 1, where the light's density is small.
         for _ in 0..50 {
-            records.push(record(1.0, 1.0, 0.01));
+            records.push(SampleRecord::grey(1.0, 1.0, 0.01));
         }
         // Light samples: a bright spot, light density 100, BSDF density 0.01.
         for _ in 0..50 {
-            records.push(record(100.0, 0.01, 100.0));
+            records.push(SampleRecord::grey(100.0, 0.01, 100.0));
         }
         let pilot = PilotSamples::from_records(&records, 50, 50);
         let mixture = pilot.minimise(Objective::Mixture, [0.025, 0.975]).unwrap();

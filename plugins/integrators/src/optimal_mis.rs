@@ -338,16 +338,6 @@ inventory::submit! {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::UVec2;
-
-    fn record(f: f32, p_bsdf: f32, p_light: f32) -> SampleRecord {
-        SampleRecord {
-            f: Rgb::splat(f),
-            p_bsdf,
-            p_light,
-            delta: false,
-        }
-    }
 
     /// If f is exactly a combination of the densities, f = c_B p_B + c_L p_L, the direct
     /// estimate is exact (c_B + c_L) whatever the samples: the control variate removes all
@@ -363,7 +353,11 @@ mod tests {
         {
             let (p_b, p_l) = (2.0 * x, 1.0);
             let f = c_b * p_b + c_l * p_l;
-            records.push(record(if i % 3 == 2 { 0.0 } else { f }, p_b, p_l));
+            records.push(SampleRecord::grey(
+                if i % 3 == 2 { 0.0 } else { f },
+                p_b,
+                p_l,
+            ));
         }
         // Black samples break f = c·p: rebuild f exactly instead.
         for r in &mut records {
@@ -373,12 +367,7 @@ mod tests {
             n_bsdf: 4,
             n_light: 4,
         };
-        let phase = Phase {
-            pixel: UVec2::ZERO,
-            light: 0,
-            split,
-            records: &records,
-        };
+        let phase = Phase::of(split, &records);
         let mut contributions = vec![Rgb::ZERO; records.len()];
         let value = DirectOptimal.weigh(&phase, &mut contributions);
         assert!((value.x - (c_b + c_l)).abs() < 1e-5, "{value}");
@@ -389,18 +378,13 @@ mod tests {
     #[test]
     fn proportional_densities_fall_back_to_balance() {
         let records: Vec<SampleRecord> = (0..6)
-            .map(|i| record(1.0 + i as f32, 1.0 + i as f32, 2.0 + 2.0 * i as f32))
+            .map(|i| SampleRecord::grey(1.0 + i as f32, 1.0 + i as f32, 2.0 + 2.0 * i as f32))
             .collect();
         let split = SampleSplit {
             n_bsdf: 3,
             n_light: 3,
         };
-        let phase = Phase {
-            pixel: UVec2::ZERO,
-            light: 0,
-            split,
-            records: &records,
-        };
+        let phase = Phase::of(split, &records);
         assert_eq!(OptimalSystem::from_phase(&phase).solve(), None);
         let mut a = vec![Rgb::ZERO; 6];
         let mut b = vec![Rgb::ZERO; 6];
@@ -417,17 +401,15 @@ mod tests {
     fn clipped_weights_are_a_partition_of_unity() {
         let coefficients = [DVec3::new(0.5, -2.0, 40.0), DVec3::new(1.5, 3.0, -1.0)];
         for (f, p_b, p_l) in [(1.0, 0.3, 2.0), (0.01, 5.0, 0.2), (3.0, 1.0, 1.0)] {
-            let records = [record(f, p_b, p_l), record(f, p_b, p_l)];
+            let records = [
+                SampleRecord::grey(f, p_b, p_l),
+                SampleRecord::grey(f, p_b, p_l),
+            ];
             let split = SampleSplit {
                 n_bsdf: 1,
                 n_light: 1,
             };
-            let phase = Phase {
-                pixel: UVec2::ZERO,
-                light: 0,
-                split,
-                records: &records,
-            };
+            let phase = Phase::of(split, &records);
             let mut c = [Rgb::ZERO; 2];
             ClippedOptimal(coefficients).weigh(&phase, &mut c);
             // Contribution = w f / p (n = 1): the weights are c p / f.

@@ -32,6 +32,19 @@ impl<'a> Phase<'a> {
     }
 }
 
+#[cfg(test)]
+impl<'a> Phase<'a> {
+    /// A phase at pixel (0, 0) of light 0, for the unit tests of weightings and observers.
+    pub(crate) fn of(split: SampleSplit, records: &'a [SampleRecord]) -> Self {
+        Phase {
+            pixel: UVec2::ZERO,
+            light: 0,
+            split,
+            records,
+        }
+    }
+}
+
 /// What a phase's samples are for, which decides what the integrator's AOVs make of them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PhaseRole {

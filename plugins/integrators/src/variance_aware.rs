@@ -307,12 +307,7 @@ mod tests {
             n_bsdf: 2,
             n_light: 3,
         };
-        let phase = Phase {
-            pixel: UVec2::ZERO,
-            light: 0,
-            split,
-            records: &records,
-        };
+        let phase = Phase::of(split, &records);
         for factors in [[1.0, 1.0], [4.0, 1.0], [1.0, 30.0]] {
             let mut c = [Rgb::ZERO; 5];
             ScaledBalance(factors).weigh(&phase, &mut c);

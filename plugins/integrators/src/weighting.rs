@@ -183,7 +183,6 @@ mod tests {
     use super::*;
     use crate::allocation::SampleSplit;
     use crate::balance::Balance;
-    use glam::UVec2;
     use lumis_core::sampler::Sampler;
 
     /// Random records of both techniques, some black, one Dirac (a BSDF sample).
@@ -221,12 +220,7 @@ mod tests {
             SampleSplit::new(0.9, 13),
         ] {
             let records = records(split);
-            let phase = Phase {
-                pixel: UVec2::ZERO,
-                light: 0,
-                split,
-                records: &records,
-            };
+            let phase = Phase::of(split, &records);
             let mut contributions = vec![Rgb::ZERO; records.len()];
             let value = PerSample(Balance).weigh(&phase, &mut contributions);
             let (n_b, n_l) = (split.n_bsdf as f64, split.n_light as f64);
