@@ -9,7 +9,9 @@ pub use lumis_core::*;
 pub use lumis_emitters as emitters;
 pub use lumis_integrators as integrators;
 
+mod binary;
 pub mod import;
+pub mod shards;
 pub mod study;
 
 /// Makes sure every built-in plugin crate is linked into the final program: a crate none of

@@ -29,6 +29,19 @@ enum Command {
     /// estimator variance, error against a reference, time and efficiency, written as
     /// results.csv, results.md, plots and image panels in --out as each row finishes.
     Study(StudyArgs),
+    /// Merge the shards of a render (`lumis render --shard i/n`, all n of them, in any order)
+    /// into the EXR and previews the one-process render writes, bit for bit.
+    Merge {
+        /// The shard files.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// Output EXR (the PNG previews are written beside it). Default: the scene's output.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// No summary line.
+        #[arg(short, long)]
+        quiet: bool,
+    },
     /// Write a MERL-format measured BRDF file tabulating any BSDF (e.g. to test `measured`).
     Merl {
         /// The BSDF to tabulate, as in a scene file: '(type: "glossy", roughness: 0.2)'.
@@ -95,6 +108,11 @@ struct RenderArgs {
     /// line `progress: K of N pixels` at each tenth of the image.)
     #[arg(short, long)]
     quiet: bool,
+    /// Render only shard I of N (0 ≤ I < N): every Nth tile, with the seeds of the whole render,
+    /// written as sums (--output, default NAME.shard-I-of-N.lshard beside the EXR) for
+    /// `lumis merge`.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -179,6 +197,11 @@ fn main() {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Study(args) => study(args),
+        Command::Merge {
+            shards,
+            output,
+            quiet,
+        } => merge(&shards, output.as_deref(), quiet),
         Command::Merl { bsdf, output } => merl(&bsdf, &output),
         Command::Import {
             scene,
@@ -288,6 +311,24 @@ fn study(args: StudyArgs) -> Result<()> {
     Ok(())
 }
 
+fn merge(shards: &[PathBuf], output: Option<&std::path::Path>, quiet: bool) -> Result<()> {
+    let start = std::time::Instant::now();
+    let written = lumis::shards::merge(shards, output)?;
+    if !quiet {
+        eprintln!(
+            "merged {} shards in {:.3} s -> {}",
+            shards.len(),
+            start.elapsed().as_secs_f64(),
+            written
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    Ok(())
+}
+
 fn merl(spec: &str, output: &std::path::Path) -> Result<()> {
     let spec: lumis::scene::description::PluginSpec = ron::from_str(spec)
         .with_context(|| format!("--bsdf `{spec}` is not a plugin description"))?;
@@ -314,12 +355,21 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Some(limit) = &args.memory_limit {
         lumis::limits::set_memory_limit(limit, "--memory-limit").map_err(anyhow::Error::msg)?;
     }
+    let shard = args
+        .shard
+        .as_deref()
+        .map(lumis::render::Shard::parse)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let threads = worker_threads(args.threads);
     let load_start = std::time::Instant::now();
     let mut loaded = lumis::scene::load_scene(&args.scene, &overrides)?;
     let load_time = load_start.elapsed();
     for warning in &loaded.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
+    }
+    if let Some(shard) = shard {
+        return render_shard(&args, overrides, loaded, shard, threads);
     }
     let exr_path = args.output.unwrap_or_else(|| loaded.scene.output.clone());
     lumis::render_files::check_exr_path(&exr_path).map_err(anyhow::Error::msg)?;
@@ -428,6 +478,62 @@ fn render(args: RenderArgs) -> Result<()> {
                 .map(|p| p.display().to_string())
                 .collect::<Vec<_>>()
                 .join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// `lumis render --shard`: renders the shard's tiles and writes their sums.
+fn render_shard(
+    args: &RenderArgs,
+    overrides: Vec<String>,
+    mut loaded: lumis::scene::LoadedScene,
+    shard: lumis::render::Shard,
+    threads: usize,
+) -> Result<()> {
+    let path = args
+        .output
+        .clone()
+        .unwrap_or_else(|| lumis::shards::default_path(&loaded.scene.output, shard));
+    image_io::check_writable(&path)?;
+    let scene_path = std::path::absolute(&args.scene)
+        .with_context(|| format!("cannot resolve `{}`", args.scene.display()))?;
+    loaded.integrator.preprocess(&loaded.scene);
+    let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
+    let (sums, stats) = lumis::render::render_shard(
+        &loaded.scene,
+        loaded.integrator.as_ref(),
+        threads,
+        shard,
+        &|_| {},
+        &cancel,
+    )
+    .context("cannot start the render threads")?;
+    if stats.partial() {
+        eprintln!(
+            "interrupted after {}: shard {shard} not written",
+            interrupt::signal_name()
+        );
+        std::process::exit(interrupt::exit_code());
+    }
+    let file = lumis::shards::ShardFile {
+        scene_name: args.scene.display().to_string(),
+        scene_path,
+        overrides,
+        exposure: args.exposure.unwrap_or(loaded.scene.exposure),
+        shard,
+        stats,
+        sums,
+    };
+    file.write(&path)?;
+    if !args.quiet {
+        eprintln!(
+            "{} shard {shard} ({} tiles, {} pixels): rendered in {:.3} s -> {}",
+            args.scene.display(),
+            stats.tiles_total,
+            stats.pixels_total,
+            stats.wall_time.as_secs_f64(),
+            path.display()
         );
     }
     Ok(())

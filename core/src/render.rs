@@ -11,6 +11,7 @@ use crate::accel::take_ray_count;
 use crate::film::Film;
 use crate::integrator::{CameraSample, Integrator};
 use crate::math::Rgb;
+use crate::output::Window;
 use crate::scene::Scene;
 use glam::{DVec3, UVec2};
 use rayon::prelude::*;
@@ -46,6 +47,159 @@ impl RenderStats {
     }
 }
 
+/// A part of a render for running it as several processes: shard `index` of `count` renders
+/// the tiles t (in row order) with t mod `count` = `index`, every camera sample of each of
+/// their pixels, with the per-sample seeds of the whole render. Each pixel is computed in one
+/// shard exactly as the one-process render computes it, so the shards' [`FilmSums`] added up
+/// resolve to the same film, bit for bit, in any shard count. Interleaved tiles rather than
+/// bands spread the expensive parts of an image over the shards.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    /// The whole render.
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// Parses `i/n` (0 ≤ i < n).
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let problem = || format!("shard `{text}` is not i/n with 0 ≤ i < n (e.g. 0/4)");
+        let (i, n) = text.split_once('/').ok_or_else(problem)?;
+        let (index, count) = (
+            i.trim().parse::<u32>().map_err(|_| problem())?,
+            n.trim().parse::<u32>().map_err(|_| problem())?,
+        );
+        if index >= count {
+            return Err(problem());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Whether tile `tile` (row-order index) belongs to this shard.
+    pub fn has(&self, tile: u32) -> bool {
+        tile % self.count == self.index
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// What a render's camera samples add up to, per pixel of the window in row order: the
+/// mergeable data of a render (pixels of tiles not rendered have no samples and zero sums).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilmSums {
+    pub full_width: u32,
+    pub full_height: u32,
+    pub window: Window,
+    /// Camera samples summed in each pixel.
+    pub samples: Vec<u32>,
+    /// Σ of the camera samples' colours.
+    pub color: Vec<DVec3>,
+    /// The integrator's sums, `stride` per pixel.
+    pub sums: Vec<f64>,
+    pub stride: usize,
+}
+
+impl FilmSums {
+    /// Sums of no samples for `scene`'s window, `stride` integrator sums per pixel.
+    pub fn new(scene: &Scene, stride: usize) -> Self {
+        let n = scene.window.width as usize * scene.window.height as usize;
+        FilmSums {
+            full_width: scene.width,
+            full_height: scene.height,
+            window: scene.window,
+            samples: vec![0; n],
+            color: vec![DVec3::ZERO; n],
+            sums: vec![0.0; n * stride],
+            stride,
+        }
+    }
+
+    /// Adds `other`'s samples (a render of the same window by the same integrator): a pixel
+    /// only one of them has is copied, bit for bit.
+    pub fn add(&mut self, other: &FilmSums) -> Result<(), String> {
+        if (self.full_width, self.full_height, self.window, self.stride)
+            != (
+                other.full_width,
+                other.full_height,
+                other.window,
+                other.stride,
+            )
+        {
+            return Err(format!(
+                "sums of a {}×{} window at ({}, {}) of a {}×{} film with {} sums per pixel cannot be added to those of a {}×{} window at ({}, {}) of a {}×{} film with {}",
+                other.window.width,
+                other.window.height,
+                other.window.x,
+                other.window.y,
+                other.full_width,
+                other.full_height,
+                other.stride,
+                self.window.width,
+                self.window.height,
+                self.window.x,
+                self.window.y,
+                self.full_width,
+                self.full_height,
+                self.stride
+            ));
+        }
+        let stride = self.stride;
+        for p in 0..self.samples.len() {
+            let n = other.samples[p];
+            if n == 0 {
+                continue;
+            }
+            let theirs = &other.sums[p * stride..(p + 1) * stride];
+            let ours = &mut self.sums[p * stride..(p + 1) * stride];
+            if self.samples[p] == 0 {
+                self.color[p] = other.color[p];
+                ours.copy_from_slice(theirs);
+            } else {
+                self.color[p] += other.color[p];
+                ours.iter_mut().zip(theirs).for_each(|(a, b)| *a += b);
+            }
+            self.samples[p] += n;
+        }
+        Ok(())
+    }
+
+    /// The film these sums resolve to with `integrator` (the one that rendered them, on the
+    /// same scene): as the one-process render resolves its tiles, pixel by pixel; pixels
+    /// without samples stay black.
+    pub fn resolve(&self, scene: &Scene, integrator: &dyn Integrator) -> Film {
+        let mut film = Film::new(
+            self.full_width,
+            self.full_height,
+            self.window,
+            integrator.aovs(scene),
+        );
+        let channels = film.aov_channels();
+        for (p, &samples) in self.samples.iter().enumerate() {
+            resolve_pixel(
+                scene,
+                integrator,
+                samples,
+                self.color[p],
+                &self.sums[p * self.stride..(p + 1) * self.stride],
+                &mut film.color[p],
+                &mut film.aov_data[p * channels..(p + 1) * channels],
+            );
+        }
+        film
+    }
+
+    /// Pixels with samples.
+    pub fn pixels_with_samples(&self) -> u64 {
+        self.samples.iter().filter(|&&n| n > 0).count() as u64
+    }
+}
+
 /// Renders the scene's window with `threads` worker threads (0: one per core). `on_tile` is
 /// called after each tile with the number of pixels finished (e.g. to advance a progress bar).
 pub fn render(
@@ -68,43 +222,18 @@ pub fn render_cancellable(
     on_tile: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
 ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()?;
     let window = scene.window;
     let mut film = Film::new(scene.width, scene.height, window, integrator.aovs(scene));
     let channels = film.aov_channels();
-    let sums_per_pixel = integrator.pixel_sums(scene);
-    let tiles_x = window.width.div_ceil(TILE_SIZE);
-    let tiles_y = window.height.div_ceil(TILE_SIZE);
-    let start = Instant::now();
-
-    let tiles: Vec<ResolvedTile> = pool.install(|| {
-        (0..tiles_x * tiles_y)
-            .into_par_iter()
-            .filter(|_| !cancel.load(Ordering::Relaxed))
-            .map(|t| {
-                let origin = UVec2::new((t % tiles_x) * TILE_SIZE, (t / tiles_x) * TILE_SIZE);
-                let size = UVec2::new(
-                    TILE_SIZE.min(window.width - origin.x),
-                    TILE_SIZE.min(window.height - origin.y),
-                );
-                let sums =
-                    TileSums::render(scene, integrator, origin, size, sums_per_pixel, cancel);
-                let tile = sums.resolve(scene, integrator, channels);
-                on_tile(tile.finished as u64);
-                tile
-            })
-            .collect()
-    });
-    let wall_time = start.elapsed();
-    let rays: u64 = pool.broadcast(|_| take_ray_count()).into_iter().sum();
-    let pixels_done: u64 = tiles.iter().map(|t| t.finished as u64).sum();
-    let tiles_done = tiles
-        .iter()
-        .filter(|t| t.finished == t.size.x * t.size.y)
-        .count() as u32;
-
+    let (tiles, stats) = render_tiles(
+        scene,
+        integrator,
+        threads,
+        Shard::WHOLE,
+        on_tile,
+        cancel,
+        |sums| sums.resolve(scene, integrator, channels),
+    )?;
     for tile in tiles {
         let (origin, size) = (tile.origin, tile.size);
         for y in 0..size.y {
@@ -116,17 +245,149 @@ pub fn render_cancellable(
                 .copy_from_slice(&tile.aovs[src * channels..(src + w) * channels]);
         }
     }
+    Ok((film, stats))
+}
+
+/// Renders the tiles of `shard` and returns their sums, unresolved, for [`FilmSums::add`] and
+/// [`FilmSums::resolve`]. The statistics count the shard's tiles and pixels only.
+pub fn render_shard(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    threads: usize,
+    shard: Shard,
+    on_tile: &(dyn Fn(u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<(FilmSums, RenderStats), rayon::ThreadPoolBuildError> {
+    let stride = integrator.pixel_sums(scene);
+    let mut film = FilmSums::new(scene, stride);
+    let (tiles, stats) = render_tiles(scene, integrator, threads, shard, on_tile, cancel, |t| t)?;
+    let width = scene.window.width;
+    for tile in tiles {
+        let (origin, size) = (tile.origin, tile.size);
+        for y in 0..size.y {
+            let src = (y * size.x) as usize;
+            let dst = ((origin.y + y) * width + origin.x) as usize;
+            let w = size.x as usize;
+            film.samples[dst..dst + w].copy_from_slice(&tile.samples[src..src + w]);
+            film.color[dst..dst + w].copy_from_slice(&tile.color[src..src + w]);
+            film.sums[dst * stride..(dst + w) * stride]
+                .copy_from_slice(&tile.sums[src * stride..(src + w) * stride]);
+        }
+    }
+    Ok((film, stats))
+}
+
+/// Tiles of a window: how many across, how many down.
+fn tile_grid(window: Window) -> (u32, u32) {
+    (
+        window.width.div_ceil(TILE_SIZE),
+        window.height.div_ceil(TILE_SIZE),
+    )
+}
+
+/// Renders the tiles of `shard` in parallel, each turned into a `T` by `finish` on its
+/// worker thread, and the statistics of the shard.
+fn render_tiles<T: Send + Finished>(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    threads: usize,
+    shard: Shard,
+    on_tile: &(dyn Fn(u64) + Sync),
+    cancel: &AtomicBool,
+    finish: impl Fn(TileSums) -> T + Sync,
+) -> Result<(Vec<T>, RenderStats), rayon::ThreadPoolBuildError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    let window = scene.window;
+    let sums_per_pixel = integrator.pixel_sums(scene);
+    let (tiles_x, tiles_y) = tile_grid(window);
+    let start = Instant::now();
+
+    let tiles: Vec<T> = pool.install(|| {
+        (0..tiles_x * tiles_y)
+            .into_par_iter()
+            .filter(|&t| shard.has(t) && !cancel.load(Ordering::Relaxed))
+            .map(|t| {
+                let origin = UVec2::new((t % tiles_x) * TILE_SIZE, (t / tiles_x) * TILE_SIZE);
+                let size = UVec2::new(
+                    TILE_SIZE.min(window.width - origin.x),
+                    TILE_SIZE.min(window.height - origin.y),
+                );
+                let sums =
+                    TileSums::render(scene, integrator, origin, size, sums_per_pixel, cancel);
+                let tile = finish(sums);
+                on_tile(tile.finished() as u64);
+                tile
+            })
+            .collect()
+    });
+    let wall_time = start.elapsed();
+    let rays: u64 = pool.broadcast(|_| take_ray_count()).into_iter().sum();
+    let pixels_done: u64 = tiles.iter().map(|t| t.finished() as u64).sum();
+    let tiles_done = tiles.iter().filter(|t| t.finished() == t.pixels()).count() as u32;
+    let (mut pixels_total, mut tiles_total) = (0u64, 0u32);
+    for t in (0..tiles_x * tiles_y).filter(|&t| shard.has(t)) {
+        let (x, y) = ((t % tiles_x) * TILE_SIZE, (t / tiles_x) * TILE_SIZE);
+        pixels_total +=
+            u64::from(TILE_SIZE.min(window.width - x) * TILE_SIZE.min(window.height - y));
+        tiles_total += 1;
+    }
     let stats = RenderStats {
         wall_time,
         camera_samples: pixels_done * scene.spp as u64,
         rays,
         threads: pool.current_num_threads(),
         pixels_done,
-        pixels_total: window.width as u64 * window.height as u64,
+        pixels_total,
         tiles_done,
-        tiles_total: tiles_x * tiles_y,
+        tiles_total,
     };
-    Ok((film, stats))
+    Ok((tiles, stats))
+}
+
+/// A rendered tile's count of finished pixels, of all its pixels.
+trait Finished {
+    fn finished(&self) -> u32;
+    fn pixels(&self) -> u32;
+}
+
+impl Finished for ResolvedTile {
+    fn finished(&self) -> u32 {
+        self.finished
+    }
+    fn pixels(&self) -> u32 {
+        self.size.x * self.size.y
+    }
+}
+
+impl Finished for TileSums {
+    fn finished(&self) -> u32 {
+        self.samples.iter().filter(|&&n| n > 0).count() as u32
+    }
+    fn pixels(&self) -> u32 {
+        self.size.x * self.size.y
+    }
+}
+
+/// A pixel's colour (the mean of its samples) and AOV values from its sums; nothing for a
+/// pixel without samples (left black). The one place sums become a pixel, so that a render
+/// resolved tile by tile and sums merged from shards give the same bits.
+fn resolve_pixel(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    samples: u32,
+    color_sum: DVec3,
+    sums: &[f64],
+    color: &mut Rgb,
+    aovs: &mut [f32],
+) -> bool {
+    if samples == 0 {
+        return false;
+    }
+    *color = (color_sum / samples as f64).as_vec3();
+    integrator.resolve(scene, sums, samples, aovs);
+    true
 }
 
 /// What a tile's camera samples add up to, per pixel in row order: the mergeable data.
@@ -207,18 +468,16 @@ impl TileSums {
             aovs: vec![0.0; n * channels],
         };
         for i in 0..n {
-            let samples = self.samples[i];
-            if samples == 0 {
-                continue;
-            }
-            tile.color[i] = (self.color[i] / samples as f64).as_vec3();
-            integrator.resolve(
+            let finished = resolve_pixel(
                 scene,
+                integrator,
+                self.samples[i],
+                self.color[i],
                 &self.sums[i * self.stride..(i + 1) * self.stride],
-                samples,
+                &mut tile.color[i],
                 &mut tile.aovs[i * channels..(i + 1) * channels],
             );
-            tile.finished += 1;
+            tile.finished += u32::from(finished);
         }
         tile
     }
