@@ -28,7 +28,7 @@ enum Command {
     /// Measure the speed/accuracy trade of integrators on scenes: K runs each give sampling and
     /// estimator variance, error against a reference, time and efficiency, written as
     /// results.csv, results.md, plots and image panels in --out as each row finishes.
-    Study(StudyArgs),
+    Study(Box<StudyArgs>),
     /// Merge the shards of a render (`lumis render --shard i/n`, all n of them, in any order)
     /// into the EXR and previews the one-process render writes, bit for bit.
     Merge {
@@ -118,8 +118,27 @@ struct RenderArgs {
 #[derive(clap::Args)]
 struct StudyArgs {
     /// The scene files (RON).
-    #[arg(required = true)]
+    #[arg(required_unless_present_any = ["cell", "collect"])]
     scenes: Vec<PathBuf>,
+    /// Do not run the study: write its manifest of cells to DIR (docs/distributed.md), to run
+    /// them with --cell (e.g. as a SLURM array) and collect them with --collect.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["cell", "collect"])]
+    plan: Option<PathBuf>,
+    /// With --plan: also write DIR/slurm.sh, which submits the cells as a SLURM job array and
+    /// the collect step as a job that depends on it, and print it.
+    #[arg(long, requires = "plan")]
+    slurm: bool,
+    /// With --slurm: at most this many cells run at once (the array's %throttle).
+    #[arg(long, default_value_t = 64, requires = "slurm")]
+    slurm_throttle: u32,
+    /// Run one cell of the study planned in DIR and write its result there. INDEX defaults to
+    /// $SLURM_ARRAY_TASK_ID, else $JOB_COMPLETION_INDEX (Kubernetes indexed jobs).
+    #[arg(long, num_args = 1..=2, value_names = ["DIR", "INDEX"], conflicts_with = "collect")]
+    cell: Option<Vec<String>>,
+    /// Collect the cells of the study planned in DIR into the report a local run writes
+    /// (to the plan's --out); names the missing and failed cells.
+    #[arg(long, value_name = "DIR")]
+    collect: Option<PathBuf>,
     /// Integrators, comma-separated, each NAME[:key=value]... (e.g. alpha:mode=preprocessed);
     /// any registered integrator with a `samples` parameter. Must include balance.
     #[arg(long, default_value = lumis::study::DEFAULT_INTEGRATORS)]
@@ -196,7 +215,7 @@ fn main() {
     lumis::link_plugins();
     let result = match cli.command {
         Command::Render(args) => render(args),
-        Command::Study(args) => study(args),
+        Command::Study(args) => study(*args),
         Command::Merge {
             shards,
             output,
@@ -246,9 +265,10 @@ fn worker_threads(requested: usize) -> usize {
     requested
 }
 
-fn study(args: StudyArgs) -> Result<()> {
+/// The study's configuration from its arguments.
+fn study_config(args: StudyArgs) -> Result<lumis::study::StudyConfig> {
     use lumis::study::config::{parse_budgets, parse_integrators};
-    use lumis::study::{Progress, ReferenceSource, StudyConfig, Sweeps};
+    use lumis::study::{ReferenceSource, StudyConfig, Sweeps};
     let mut config = StudyConfig::new(args.scenes, args.out)?;
     config.integrators = parse_integrators(&args.integrators)?;
     config.budgets = parse_budgets(&args.budgets)?;
@@ -271,14 +291,159 @@ fn study(args: StudyArgs) -> Result<()> {
     config.seed = args.seed;
     config.report = args.report;
     config.notes = args.notes;
+    Ok(config)
+}
+
+/// The arguments after `lumis study`, without the options that plan, run or collect cells:
+/// the arguments of the same study run locally.
+fn study_arguments() -> Vec<String> {
+    let mut arguments = Vec::new();
+    let mut args = std::env::args().skip(2);
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--plan" | "--slurm-throttle" => {
+                args.next();
+            }
+            "--slurm" => {}
+            a if a.starts_with("--plan=") || a.starts_with("--slurm-throttle=") => {}
+            _ => arguments.push(arg),
+        }
+    }
+    arguments
+}
+
+/// The configuration of the study planned in `dir`, whose directory becomes the current one
+/// (the plan's paths are relative to it); `dir` is returned absolute.
+fn planned_study(
+    dir: &std::path::Path,
+    threads: usize,
+) -> Result<(lumis::study::StudyConfig, PathBuf)> {
+    let dir =
+        std::path::absolute(dir).with_context(|| format!("cannot resolve `{}`", dir.display()))?;
+    let manifest = lumis::study::store::Manifest::read(&dir)?;
+    let arguments = std::iter::once("lumis".to_string())
+        .chain(std::iter::once("study".to_string()))
+        .chain(manifest.arguments.iter().cloned());
+    let Command::Study(args) = Cli::try_parse_from(arguments)
+        .with_context(|| format!("the arguments in `{}`", dir.join("manifest.ron").display()))?
+        .command
+    else {
+        anyhow::bail!("the manifest of `{}` is not a study's", dir.display());
+    };
+    std::env::set_current_dir(&manifest.directory).with_context(|| {
+        format!(
+            "cannot enter the study's directory `{}`",
+            manifest.directory.display()
+        )
+    })?;
+    let mut config = study_config(*args)?;
+    if threads != 0 {
+        config.threads = threads;
+    }
+    config.command = Some(format!("lumis study {}", manifest.arguments.join(" ")));
+    Ok((config, dir))
+}
+
+/// The index of the cell to run: given, else from the array job's environment.
+fn cell_index(given: Option<&String>) -> Result<usize> {
+    if let Some(text) = given {
+        return text
+            .parse()
+            .with_context(|| format!("cell index `{text}` is not a number"));
+    }
+    for variable in ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"] {
+        if let Ok(text) = std::env::var(variable) {
+            return text
+                .parse()
+                .with_context(|| format!("{variable}=`{text}` is not a cell index"));
+        }
+    }
+    anyhow::bail!(
+        "--cell DIR needs a cell index: give it (--cell DIR INDEX), or run in a SLURM array job (SLURM_ARRAY_TASK_ID) or a Kubernetes indexed job (JOB_COMPLETION_INDEX)"
+    )
+}
+
+fn study(args: StudyArgs) -> Result<()> {
+    use lumis::study::Progress;
+    let quiet = args.quiet;
+    if let Some(cell) = &args.cell {
+        let index = cell_index(cell.get(1))?;
+        let (config, dir) = planned_study(std::path::Path::new(&cell[0]), args.threads)?;
+        let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
+        let start = std::time::Instant::now();
+        let result = lumis::study::run_planned_cell(&config, &dir, index, &cancel)?;
+        if !quiet {
+            eprintln!(
+                "cell {index} ({:?}, seed {}) done in {:.2} s ({:.2} s of CPU) -> {}",
+                result.cell.role,
+                result.cell.seed,
+                start.elapsed().as_secs_f64(),
+                result.cpu_time,
+                lumis::study::store::cell_path(&dir, index).display()
+            );
+        }
+        return Ok(());
+    }
+    if let Some(dir) = &args.collect {
+        let (config, _) = planned_study(dir, args.threads)?;
+        let progress = Progress {
+            bar: ProgressBar::hidden(),
+            lines: !quiet,
+        };
+        let start = std::time::Instant::now();
+        let dir = std::path::absolute(dir)?;
+        lumis::study::collect(&config, &dir, &progress)?;
+        if !quiet {
+            eprintln!(
+                "collected {} in {:.1} s -> {}",
+                dir.display(),
+                start.elapsed().as_secs_f64(),
+                config.report_path().display()
+            );
+        }
+        return Ok(());
+    }
+    let plan = args.plan.clone();
+    let (slurm, throttle) = (args.slurm, args.slurm_throttle);
+    let mut config = study_config(args)?;
     config.command = Some(
         std::iter::once("lumis".to_string())
             .chain(std::env::args().skip(1))
             .collect::<Vec<_>>()
             .join(" "),
     );
+    if let Some(dir) = plan {
+        let dir = std::path::absolute(&dir)
+            .with_context(|| format!("cannot resolve `{}`", dir.display()))?;
+        let program = std::env::current_exe()
+            .context("cannot find this program's path")?
+            .display()
+            .to_string();
+        let directory = std::env::current_dir().context("cannot read the current directory")?;
+        let manifest = lumis::study::plan(&config, &dir, study_arguments(), directory, &program)?;
+        if slurm {
+            let script = lumis::study::slurm_script(&manifest, &dir, &program, throttle);
+            let path = dir.join("slurm.sh");
+            image_io::write_atomically(&path, |file| {
+                use std::io::Write;
+                file.write_all(script.as_bytes()).map_err(|e| e.to_string())
+            })?;
+            print!("{script}");
+        }
+        if !quiet {
+            eprintln!(
+                "planned {} cells in {}: run each with `{}`, then `{} study --collect {}`",
+                manifest.cells.len(),
+                dir.display(),
+                manifest.command,
+                program,
+                dir.display()
+            );
+        }
+        return Ok(());
+    }
     let terminal = std::io::stderr().is_terminal();
-    let bar = if args.quiet || !terminal {
+    let bar = if quiet || !terminal {
         ProgressBar::hidden()
     } else {
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
@@ -291,16 +456,13 @@ fn study(args: StudyArgs) -> Result<()> {
         bar.enable_steady_tick(std::time::Duration::from_millis(200));
         bar
     };
-    let progress = Progress {
-        bar,
-        lines: !args.quiet,
-    };
+    let progress = Progress { bar, lines: !quiet };
     // Ctrl-C stops at the next camera sample; every finished scene is already written, and the
     // current one is written with its complete runs.
     let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
     let start = std::time::Instant::now();
     lumis::study::run(&config, &progress, &cancel)?;
-    if !args.quiet {
+    if !quiet {
         eprintln!(
             "study of {} scene(s) finished in {:.1} s -> {}",
             config.scenes.len(),

@@ -19,6 +19,7 @@ use super::stats::{Estimate, Jack, Reach, reach};
 use super::summary::{ConfigurationStats, Context, RunSummary, median_variance_ratio};
 use anyhow::{Result, bail};
 use lumis_core::math::Rgb;
+use serde::Serialize;
 use std::collections::HashMap;
 
 /// Accumulates a scene's run summaries.
@@ -33,7 +34,7 @@ pub struct Collector {
 
 /// Ratios of a configuration's statistics to the balance heuristic's at the same budget (and
 /// the same runs), with 95 % intervals.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct Ratios {
     pub relative_variance: Estimate,
     pub median_variance: Estimate,
@@ -49,7 +50,7 @@ pub struct Ratios {
 }
 
 /// One configuration's measurements.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct Row {
     pub configuration: usize,
     pub label: String,
@@ -76,7 +77,7 @@ pub struct Row {
 
 /// A quantity read off a curve: between its measured budgets, extrapolated by up to a factor
 /// of two in time beyond them, or further (then only a bound is reported).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub enum Extent {
     Within,
     Extrapolated,
@@ -86,14 +87,14 @@ pub enum Extent {
     },
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Serialize)]
 pub struct Reading {
     pub estimate: Estimate,
     pub extent: Extent,
 }
 
 /// What one integrator's curve says about the trade.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct Trade {
     pub integrator: usize,
     pub label: String,
@@ -107,13 +108,13 @@ pub struct Trade {
 }
 
 /// One integrator's curve: per budget, CPU time and errors.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct Curve {
     pub label: String,
     pub points: Vec<CurvePoint>,
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Serialize)]
 pub struct CurvePoint {
     pub samples: u32,
     pub cpu_time: Estimate,
@@ -123,7 +124,7 @@ pub struct CurvePoint {
 
 /// A stretch of CPU time over which one integrator has the lowest error of all (point
 /// estimates, between measured budgets).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct FrontSegment {
     pub label: String,
     pub from: f64,
@@ -131,7 +132,7 @@ pub struct FrontSegment {
 }
 
 /// A sweep point against the balance heuristic at its budget.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct SweepRow {
     pub sweep: Sweep,
     pub x: f64,
@@ -139,7 +140,7 @@ pub struct SweepRow {
 }
 
 /// A row compared with the paper's tables (N = 256).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct PaperRow {
     pub row: Row,
     /// The paper's ratios to its balance heuristic for the same method, when it is the same
@@ -159,7 +160,7 @@ pub struct PanelImages {
 }
 
 /// Everything the report says about one scene.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct SceneAnalysis {
     pub name: String,
     pub path: std::path::PathBuf,
@@ -178,6 +179,9 @@ pub struct SceneAnalysis {
     pub reference_cpu_time: Option<f64>,
     pub reference_cached: bool,
     pub reference_path: std::path::PathBuf,
+    /// The reference image (not serialised: the analysis's numbers are, its images are in the
+    /// report's panels).
+    #[serde(skip)]
     pub reference_pixels: Vec<Rgb>,
     /// The reference's own relative variance over balance's at the largest budget.
     pub reference_share: f64,
@@ -195,6 +199,7 @@ pub struct SceneAnalysis {
     pub front: Vec<FrontSegment>,
     pub paper: Vec<PaperRow>,
     pub sweeps: Vec<SweepRow>,
+    #[serde(skip)]
     pub panel: Option<PanelImages>,
     pub exposure_scale: f32,
 }

@@ -11,10 +11,16 @@
 //!   including the choice of K by the rule that grows it (so a study whose cells ran anywhere,
 //!   in any order, collects to the same numbers).
 //!
-//! This module runs the three in one process: per scene, the reference (cached, [`reference`]),
+//! [`run`] runs the three in one process: per scene, the reference (cached, [`reference`]),
 //! then rounds of runs (K₀, 2K₀, … until the headline ratio is precise enough), then the
 //! scene's tables ([`report`]), plots and panel, written as each scene finishes. Statistics and
 //! their intervals are in [`stats`] and [`summary`].
+//!
+//! [`plan`], [`run_planned_cell`] and [`collect`] do the same in separate processes, through a
+//! directory ([`store`]): the plan lists every cell of every round up to the cap of K (which
+//! cannot be known before the cells run), each cell runs anywhere (a SLURM array task) and
+//! writes its result, and collect applies the K rule to the results, so that it reports the K
+//! and the numbers of the local run (docs/distributed.md).
 
 pub mod cell;
 pub mod collect;
@@ -27,6 +33,7 @@ mod plots;
 pub mod reference;
 mod report;
 pub mod stats;
+pub mod store;
 pub mod summary;
 
 pub use cell::{CellResult, Interrupted};
@@ -39,9 +46,10 @@ use collect::{Collector, SceneAnalysis};
 use indicatif::ProgressBar;
 use lumis_core::scene::load::load_scene;
 use plan::{Cell, ScenePlan, plan_scene};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
+use store::Manifest;
 
 /// How a study tells its progress: a bar on a terminal, and a line per finished run and scene
 /// (above the bar, or alone when stderr is not a terminal) unless quiet.
@@ -71,10 +79,14 @@ impl Progress {
     }
 }
 
-/// Runs a study: every scene's reference, rounds of runs and report; stops at the next camera
-/// sample once `cancel` is set, after writing what it has (the finished scenes, and the current
-/// one with its complete runs).
-pub fn run(config: &StudyConfig, progress: &Progress, cancel: &AtomicBool) -> Result<()> {
+/// Runs a study: every scene's reference, rounds of runs and report, and returns the finished
+/// scenes' analyses; stops at the next camera sample once `cancel` is set, after writing what
+/// it has (the finished scenes, and the current one with its complete runs).
+pub fn run(
+    config: &StudyConfig,
+    progress: &Progress,
+    cancel: &AtomicBool,
+) -> Result<Vec<SceneAnalysis>> {
     config.validate()?;
     plots::register_font()?;
     std::fs::create_dir_all(&config.out)
@@ -117,7 +129,7 @@ pub fn run(config: &StudyConfig, progress: &Progress, cancel: &AtomicBool) -> Re
         ));
     }
     progress.bar.finish_and_clear();
-    Ok(())
+    Ok(finished)
 }
 
 /// Renders one scene's reference and runs, and adds its analysis to `finished`.
@@ -130,10 +142,7 @@ fn study_scene(
 ) -> Result<()> {
     let name = plan.name.clone();
     progress.bar.set_message(format!("{name}: loading"));
-    let mut loaded = load_scene(&plan.path, &config.overrides)?;
-    // Rays through pixel centres: runs then differ only in the light and BSDF samples that
-    // MIS is about, not in where the pixel is shaded (antialiasing noise no strategy changes).
-    loaded.scene.jitter = false;
+    let mut loaded = load_study_scene(config, &plan)?;
     let base = plan.path.parent().unwrap_or(Path::new("")).to_path_buf();
     let window = loaded.scene.window;
     let scene = &mut loaded.scene;
@@ -192,15 +201,7 @@ fn study_scene(
             }
         }
     };
-    let context = summary::Context::new(
-        reference,
-        config.epsilon,
-        config.block,
-        scene.exposure.exp2(),
-        window.width,
-        window.height,
-    );
-    let mut collector = Collector::new(plan, context, config);
+    let mut collector = Collector::new(plan, context(config, scene, reference), config);
     let rounds = config.rounds();
     let mut done = 0;
     for (round, &k) in rounds.iter().enumerate() {
@@ -259,9 +260,49 @@ fn study_scene(
             break;
         }
     }
+    finished.push(finish_scene(config, &collector, progress)?);
+    Ok(())
+}
+
+/// A scene of a study, loaded with the study's overrides.
+fn load_study_scene(
+    config: &StudyConfig,
+    plan: &ScenePlan,
+) -> Result<lumis_core::scene::load::LoadedScene> {
+    let mut loaded = load_scene(&plan.path, &config.overrides)?;
+    // Rays through pixel centres: runs then differ only in the light and BSDF samples that
+    // MIS is about, not in where the pixel is shaded (antialiasing noise no strategy changes).
+    loaded.scene.jitter = false;
+    Ok(loaded)
+}
+
+/// What a scene's statistics are computed against.
+fn context(
+    config: &StudyConfig,
+    scene: &lumis_core::scene::Scene,
+    reference: reference::Reference,
+) -> summary::Context {
+    summary::Context::new(
+        reference,
+        config.epsilon,
+        config.block,
+        scene.exposure.exp2(),
+        scene.window.width,
+        scene.window.height,
+    )
+}
+
+/// The analysis of a scene whose runs are all in `collector`, its progress line, its plots and
+/// panel.
+fn finish_scene(
+    config: &StudyConfig,
+    collector: &Collector,
+    progress: &Progress,
+) -> Result<SceneAnalysis> {
+    let name = &collector.plan.name;
     let analysis = collector
         .analyse(false)
-        .context("fewer than 3 complete runs")?;
+        .with_context(|| format!("{name}: fewer than 3 complete runs"))?;
     if let Some((label, e, met)) = &analysis.headline {
         progress.line(format!(
             "{name}: K = {}: `{label}` / balance relative variance at N = {}: {} [{:.3}, {:.3}]{}",
@@ -278,8 +319,213 @@ fn study_scene(
         ));
     }
     write_scene(config, &analysis)?;
-    finished.push(analysis);
-    Ok(())
+    Ok(analysis)
+}
+
+/// Every cell of a scene in index order: the reference's shards (when rendered), then the runs
+/// of every round up to the cap of K, run-major (the runs of K₀ of every configuration, then
+/// the further runs of the configurations that grow).
+fn scene_cells(config: &StudyConfig, plan: &ScenePlan) -> Vec<Cell> {
+    let mut cells = plan.reference_cells();
+    let mut done = 0;
+    for (round, &k) in config.rounds().iter().enumerate() {
+        cells.extend(plan.cells(done + 1..=k, round == 0));
+        done = k;
+    }
+    cells
+}
+
+/// The plans of a study's scenes and all their cells, in index order.
+fn plan_study(config: &StudyConfig) -> Result<(Vec<ScenePlan>, Vec<Cell>)> {
+    config.validate()?;
+    let plans: Vec<ScenePlan> = config
+        .scenes
+        .iter()
+        .enumerate()
+        .map(|(i, path)| plan_scene(config, i, path.clone()))
+        .collect::<Result<_>>()?;
+    let cells = plans.iter().flat_map(|p| scene_cells(config, p)).collect();
+    Ok((plans, cells))
+}
+
+/// `lumis study … --plan DIR`: writes the manifest of the study's cells to `dir` (the cells'
+/// results go to `dir/cells`). `arguments` are the study's arguments without `--plan` (they
+/// plan the same cells again in `directory`); `program` is the executable that runs a cell.
+pub fn plan(
+    config: &StudyConfig,
+    dir: &Path,
+    arguments: Vec<String>,
+    directory: PathBuf,
+    program: &str,
+) -> Result<Manifest> {
+    let (_, cells) = plan_study(config)?;
+    std::fs::create_dir_all(dir.join("cells"))
+        .with_context(|| format!("cannot create `{}`", dir.join("cells").display()))?;
+    let manifest = Manifest {
+        format: 1,
+        arguments,
+        directory,
+        command: format!("{program} study --cell {} INDEX", dir.display()),
+        cells,
+    };
+    manifest.write(dir)?;
+    Ok(manifest)
+}
+
+/// `lumis study --cell DIR INDEX`: runs cell `index` of the study planned in `dir` (whose
+/// arguments gave `config`) and writes its result, or its error beside it.
+pub fn run_planned_cell(
+    config: &StudyConfig,
+    dir: &Path,
+    index: usize,
+    cancel: &AtomicBool,
+) -> Result<CellResult> {
+    let manifest = Manifest::read(dir)?;
+    let Some(&cell) = manifest.cells.get(index) else {
+        anyhow::bail!(
+            "cell {index} is not in the plan `{}`: it has cells 0 to {}",
+            dir.display(),
+            manifest.cells.len().saturating_sub(1)
+        );
+    };
+    let result = run_checked_cell(config, &manifest, dir, index, cell, cancel);
+    let error = store::error_path(dir, index);
+    match &result {
+        Ok(_) => {
+            if error.exists() {
+                std::fs::remove_file(&error)
+                    .with_context(|| format!("cannot remove `{}`", error.display()))?;
+            }
+        }
+        Err(e) if e.downcast_ref::<Interrupted>().is_none() => {
+            let text = format!("{e:#}\n");
+            lumis_core::image_io::write_atomically(&error, |file| {
+                std::io::Write::write_all(file, text.as_bytes()).map_err(|e| e.to_string())
+            })?;
+        }
+        Err(_) => {}
+    }
+    result
+}
+
+fn run_checked_cell(
+    config: &StudyConfig,
+    manifest: &Manifest,
+    dir: &Path,
+    index: usize,
+    cell: Cell,
+    cancel: &AtomicBool,
+) -> Result<CellResult> {
+    let (plans, cells) = plan_study(config)?;
+    if cells != manifest.cells {
+        anyhow::bail!(
+            "the arguments of `{}` no longer plan its cells (the scenes or the program changed?): plan the study again",
+            dir.display()
+        );
+    }
+    let plan = &plans[cell.scene];
+    let mut loaded = load_study_scene(config, plan)?;
+    let base = plan.path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let result = cell::run_cell(
+        plan,
+        &cell,
+        &mut loaded.scene,
+        &base,
+        config.threads,
+        cancel,
+        dir,
+    )?;
+    store::write_cell(&store::cell_path(dir, index), &result)?;
+    Ok(result)
+}
+
+/// `lumis study --collect DIR`: reads every cell's result of the study planned in `dir`, writes
+/// the report the local run writes, and returns the scenes' analyses. Names the missing and the
+/// failed cells by index if any.
+pub fn collect(
+    config: &StudyConfig,
+    dir: &Path,
+    progress: &Progress,
+) -> Result<Vec<SceneAnalysis>> {
+    let manifest = Manifest::read(dir)?;
+    let (plans, cells) = plan_study(config)?;
+    if cells != manifest.cells {
+        anyhow::bail!(
+            "the arguments of `{}` no longer plan its cells (the scenes or the program changed?)",
+            dir.display()
+        );
+    }
+    let (mut missing, mut failed) = (Vec::new(), Vec::new());
+    for index in 0..cells.len() {
+        if !store::cell_path(dir, index).is_file() {
+            if store::error_path(dir, index).is_file() {
+                failed.push(index);
+            } else {
+                missing.push(index);
+            }
+        }
+    }
+    if !missing.is_empty() || !failed.is_empty() {
+        let mut text = format!(
+            "{} of {} cells are not done:",
+            missing.len() + failed.len(),
+            cells.len()
+        );
+        if !failed.is_empty() {
+            text += &format!(
+                " failed: {} (their errors: {}/cells/NNNNNN.error);",
+                store::ranges(&failed),
+                dir.display()
+            );
+        }
+        if !missing.is_empty() {
+            text += &format!(" missing: {};", store::ranges(&missing));
+        }
+        text += &format!(" run each with `{}`", manifest.command);
+        anyhow::bail!(text);
+    }
+    plots::register_font()?;
+    std::fs::create_dir_all(&config.out)
+        .with_context(|| format!("cannot create `{}`", config.out.display()))?;
+    let mut finished = Vec::new();
+    let mut next = 0;
+    for plan in plans {
+        let count = scene_cells(config, &plan).len();
+        let indices = next..next + count;
+        next += count;
+        let loaded = load_study_scene(config, &plan)?;
+        let scene = &loaded.scene;
+        let window = scene.window;
+        let read = |i: usize| store::read_cell(&store::cell_path(dir, i), &cells[i]);
+        let shards = plan.reference_cells().len();
+        let reference = match &config.reference {
+            ReferenceSource::File(file) => reference::read_file(file, window)?,
+            ReferenceSource::Samples(_) => {
+                let reference_plan = plan.reference.as_ref().context("a rendered reference")?;
+                let entry = reference::cache_entry(
+                    &config.cache_dir(),
+                    &plan.path,
+                    &plan.name,
+                    window,
+                    &config.overrides,
+                    reference_plan,
+                )?;
+                let results = indices
+                    .clone()
+                    .take(shards)
+                    .map(read)
+                    .collect::<Result<Vec<_>>>()?;
+                reference::merge(&results, reference_plan, &entry, &plan.path, window)?
+            }
+        };
+        let mut collector = Collector::new(plan, context(config, scene, reference), config);
+        for i in indices.skip(shards) {
+            collector.add(&read(i)?)?;
+        }
+        finished.push(finish_scene(config, &collector, progress)?);
+    }
+    write_study(config, &finished)?;
+    Ok(finished)
 }
 
 /// The outputs of one finished scene: its plots and panel.
@@ -296,4 +542,40 @@ fn write_study(config: &StudyConfig, scenes: &[SceneAnalysis]) -> Result<()> {
     plots::sweeps(&config.out, scenes)?;
     report::write_csvs(&config.out, scenes)?;
     report::write_markdown(config, scenes)
+}
+
+/// A shell word: `text` in single quotes.
+fn shell_quote(text: &str) -> String {
+    format!("'{}'", text.replace('\'', r"'\''"))
+}
+
+/// The script `--plan DIR --slurm` writes to `DIR/slurm.sh`: it submits the cells as one job
+/// array (at most `throttle` running at once), and the collect step as a job that starts only
+/// once every cell has succeeded (`--dependency=afterok`). sbatch's own environment variables
+/// (SBATCH_PARTITION, SBATCH_TIMELIMIT, SBATCH_ACCOUNT, …) apply to both.
+pub fn slurm_script(manifest: &Manifest, dir: &Path, program: &str, throttle: u32) -> String {
+    let last = manifest.cells.len().saturating_sub(1);
+    let dir = shell_quote(&dir.display().to_string());
+    let program = shell_quote(program);
+    format!(
+        r#"#!/bin/sh
+# Runs the study planned in {dir} on SLURM: its {cells} cells as a job array (at most
+# {throttle} at once, LUMIS_CPUS_PER_CELL cores each, default 1), then the collect step once every
+# cell has succeeded. A failed cell is named by `lumis study --collect`; re-run it alone with
+# `sbatch --array=INDEX ...` (the cells line below) and submit the collect line again.
+# Made by `lumis study ... --plan DIR --slurm`.
+set -eu
+dir={dir}
+cpus="${{LUMIS_CPUS_PER_CELL:-1}}"
+mkdir -p "$dir/logs"
+cells=$(sbatch --parsable --job-name=lumis-cells --array=0-{last}%{throttle} \
+    --cpus-per-task="$cpus" --output="$dir/logs/cell-%a.out" \
+    --wrap="{program} study --quiet --cell {dir} --threads $cpus")
+cells="${{cells%%;*}}"
+collect=$(sbatch --parsable --job-name=lumis-collect --dependency=afterok:"$cells" \
+    --output="$dir/logs/collect.out" --wrap="{program} study --collect {dir}")
+echo "cells: job $cells; collect: job ${{collect%%;*}}"
+"#,
+        cells = manifest.cells.len(),
+    )
 }

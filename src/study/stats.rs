@@ -256,7 +256,7 @@ pub fn student_quantile(df: f64) -> f64 {
 
 /// A value with its 95 % interval [lo, hi]; `se` is the standard error (of the log for an
 /// interval on the log scale) and `df` its degrees of freedom.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Estimate {
     pub value: f64,
     pub lo: f64,
