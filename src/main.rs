@@ -338,7 +338,7 @@ fn planned_study(
     })?;
     let mut config = study_config(*args)?;
     if threads != 0 {
-        config.threads = threads;
+        config.threads = worker_threads(threads);
     }
     config.command = Some(format!("lumis study {}", manifest.arguments.join(" ")));
     Ok((config, dir))
@@ -385,13 +385,12 @@ fn study(args: StudyArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(dir) = &args.collect {
-        let (config, _) = planned_study(dir, args.threads)?;
+        let (config, dir) = planned_study(dir, args.threads)?;
         let progress = Progress {
             bar: ProgressBar::hidden(),
             lines: !quiet,
         };
         let start = std::time::Instant::now();
-        let dir = std::path::absolute(dir)?;
         lumis::study::collect(&config, &dir, &progress)?;
         if !quiet {
             eprintln!(
@@ -657,6 +656,15 @@ fn render_shard(
         .output
         .clone()
         .unwrap_or_else(|| lumis::shards::default_path(&loaded.scene.output, shard));
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        anyhow::bail!(
+            "a shard holds sums for `lumis merge`, not an image: name it .lshard, not `{}`",
+            path.display()
+        );
+    }
     image_io::check_writable(&path)?;
     let scene_path = std::path::absolute(&args.scene)
         .with_context(|| format!("cannot resolve `{}`", args.scene.display()))?;

@@ -237,7 +237,8 @@ fn a_planned_study_collects_to_the_local_report_and_names_missing_and_failed_cel
         };
         ok(&output, "a cell");
     }
-    let collect = || lumis(d, &["study", "--quiet", "--collect", "plan"]);
+    // From another directory: the plan's paths are relative to where it was made.
+    let collect = || lumis(&d.join("plan"), &["study", "--quiet", "--collect", "."]);
     let e = failure(collect(), "a collect with cells missing");
     assert!(e.contains("failed: 20") && e.contains("missing: 21"), "{e}");
     assert!(!d.join("planned/results.csv").exists(), "nothing collected");

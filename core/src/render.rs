@@ -5,7 +5,9 @@
 //! integrator returns (f64) and lets the integrator add its statistics to the pixel's sums. A
 //! tile's sums and sample counts are its primary data ([`TileSums`]); only then are they
 //! resolved into colours and AOV values. Sums over disjoint sets of camera samples add up, so
-//! tiles or sample ranges rendered apart can be merged exactly before resolving.
+//! tiles rendered apart merge exactly before resolving: [`render_shard`] renders a [`Shard`]'s
+//! tiles to [`FilmSums`], which add up and resolve, with the code that resolves a tile, to the
+//! one-process film bit for bit (docs/distributed.md).
 
 use crate::accel::take_ray_count;
 use crate::film::Film;

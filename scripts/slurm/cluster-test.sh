@@ -44,7 +44,11 @@ running() {
     state=$(ps -o stat= -p "$1" 2>/dev/null) && [ "${state#Z}" = "$state" ]
 }
 cleanup() {
-    # Only the daemons this script started, by their process ids.
+    # Jobs still queued or running on this private cluster (after a timeout), then only the
+    # daemons this script started, by their process ids.
+    if [ -n "${SLURM_CONF:-}" ]; then
+        squeue -h -o %A 2>/dev/null | xargs -r scancel 2>/dev/null || true
+    fi
     for pid in "${pids[@]}"; do
         kill "$pid" 2>/dev/null || true
     done
@@ -56,6 +60,7 @@ cleanup() {
     rm -rf "$work"
 }
 trap cleanup EXIT
+trap 'exit 130' INT TERM
 
 # munge, as the munge user, on a private socket.
 mkdir -p "$work/munge"

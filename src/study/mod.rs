@@ -87,16 +87,10 @@ pub fn run(
     progress: &Progress,
     cancel: &AtomicBool,
 ) -> Result<Vec<SceneAnalysis>> {
-    config.validate()?;
+    let (plans, _) = plan_study(config)?;
     plots::register_font()?;
     std::fs::create_dir_all(&config.out)
         .with_context(|| format!("cannot create `{}`", config.out.display()))?;
-    let plans: Vec<ScenePlan> = config
-        .scenes
-        .iter()
-        .enumerate()
-        .map(|(i, path)| plan_scene(config, i, path.clone()))
-        .collect::<Result<_>>()?;
     // Progress in samples per light per pixel: the references and the first round (later
     // rounds are added when they start).
     let first_round: u64 = plans
@@ -362,7 +356,7 @@ pub fn plan(
     std::fs::create_dir_all(dir.join("cells"))
         .with_context(|| format!("cannot create `{}`", dir.join("cells").display()))?;
     let manifest = Manifest {
-        format: 1,
+        format: store::MANIFEST_FORMAT,
         arguments,
         directory,
         command: format!("{program} study --cell {} INDEX", dir.display()),

@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The manifest's format; a manifest of another is refused.
-const MANIFEST_FORMAT: u32 = 1;
+pub const MANIFEST_FORMAT: u32 = 1;
 const MANIFEST: &str = "manifest.ron";
 const CELL_MAGIC: &[u8; 8] = b"LUMISCEL";
 const CELL_VERSION: u32 = 1;
