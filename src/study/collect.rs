@@ -784,14 +784,18 @@ mod tests {
             .iter()
             .map(|c| synthetic(c, &luminance, w, h))
             .collect();
-        let analyse = |results: &mut dyn Iterator<Item = CellResult>| {
+        let analyse_at = |precision: f64, results: &mut dyn Iterator<Item = CellResult>| {
             let context = Context::new(reference(), 0.01, 8, 1.0, w, h);
+            let mut config = config.clone();
+            config.precision = precision;
             let mut collector = Collector::new(plan.clone(), context, &config);
             for r in results {
                 collector.add(&r).expect("a run of this plan");
             }
             collector.analyse(false).expect("complete runs")
         };
+        let analyse =
+            |results: &mut dyn Iterator<Item = CellResult>| analyse_at(config.precision, results);
         let forward = analyse(&mut results.iter().cloned());
         let reversed = analyse(&mut results.iter().rev().cloned());
         let transported = analyse(&mut results.iter().map(|r| {
@@ -824,5 +828,31 @@ mod tests {
         assert!(forward.runs == 3 || forward.runs == 6);
         assert_eq!(forward.rows.len(), 3);
         assert!(forward.rows.iter().all(|r| r.len() == 3));
+
+        // A planned study holds every round up to the cap; collect applies the K rule to them
+        // and reports the K a local run reports, which stops at the first round precise enough
+        // (here K₀ = 3, with a loose precision) or runs to the cap (a precision never met).
+        for (precision, local_k) in [(0.9, 3), (1e-9, 6)] {
+            let local: Vec<_> = if local_k == 3 {
+                results[..plan.cells(1..=3, true).len()].to_vec()
+            } else {
+                results.clone()
+            };
+            let local = analyse_at(precision, &mut local.into_iter());
+            let planned = analyse_at(precision, &mut results.iter().cloned());
+            assert_eq!(
+                (local.runs, planned.runs),
+                (local_k, local_k),
+                "precision {precision}"
+            );
+            for (a, b) in local
+                .rows
+                .iter()
+                .flatten()
+                .zip(planned.rows.iter().flatten())
+            {
+                assert_eq!(a.relative_variance, b.relative_variance, "{}", a.label);
+            }
+        }
     }
 }
