@@ -688,6 +688,7 @@ fn render_shard(
     }
     let file = lumis::shards::ShardFile {
         scene_name: args.scene.display().to_string(),
+        scene_hash: lumis::shards::file_hash(&scene_path)?,
         scene_path,
         overrides,
         exposure: args.exposure.unwrap_or(loaded.scene.exposure),

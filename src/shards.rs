@@ -25,6 +25,9 @@ pub struct ShardFile {
     /// load it again).
     pub scene_name: String,
     pub scene_path: PathBuf,
+    /// FNV-1a of the scene file's bytes when the shard was rendered: shards of different
+    /// versions of a scene are not one render.
+    pub scene_hash: u64,
     /// The render's overrides, `--spp` and `--seed` included.
     pub overrides: Vec<String>,
     /// Exposure of the PNG preview, stops.
@@ -39,6 +42,7 @@ impl ShardFile {
         let mut w = Writer::new(MAGIC, VERSION);
         w.str(&self.scene_name);
         w.str(&self.scene_path.to_string_lossy());
+        w.u64(self.scene_hash);
         w.u64(self.overrides.len() as u64);
         self.overrides.iter().for_each(|o| w.str(o));
         w.f32(self.exposure);
@@ -77,6 +81,7 @@ impl ShardFile {
         let mut r = Reader::open(path, MAGIC, VERSION, WHAT)?;
         let scene_name = r.str("the scene's name")?;
         let scene_path = PathBuf::from(r.str("the scene's path")?);
+        let scene_hash = r.u64("the scene's hash")?;
         let overrides = r.u64("the override count")?;
         let overrides = (0..overrides)
             .map(|_| r.str("an override"))
@@ -136,6 +141,7 @@ impl ShardFile {
         Ok(ShardFile {
             scene_name,
             scene_path,
+            scene_hash,
             overrides,
             exposure,
             shard: Shard { index, count },
@@ -154,6 +160,14 @@ impl ShardFile {
             },
         })
     }
+}
+
+/// FNV-1a (64 bits) of the file at `path`: a fingerprint stable across builds and machines.
+pub fn file_hash(path: &Path) -> Result<u64> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read `{}`", path.display()))?;
+    Ok(bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    }))
 }
 
 /// The shard file a render writes by default: beside its EXR, `NAME.shard-I-of-N.lshard`.
@@ -176,11 +190,15 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
     let count = first.shard.count;
     let mut seen: Vec<Option<&Path>> = vec![None; count as usize];
     for (shard, path) in shards.iter().zip(paths) {
-        if (&shard.scene_path, &shard.overrides, shard.shard.count)
-            != (&first.scene_path, &first.overrides, count)
+        if (
+            &shard.scene_path,
+            shard.scene_hash,
+            &shard.overrides,
+            shard.shard.count,
+        ) != (&first.scene_path, first.scene_hash, &first.overrides, count)
         {
             bail!(
-                "`{}` is shard {} of a render of `{}` with overrides [{}]; `{}` is shard {} of `{}` with [{}]: not the same render",
+                "`{}` is shard {} of a render of `{}` with overrides [{}]; `{}` is shard {} of `{}` with [{}]: not the same render (or the scene file changed between them)",
                 path.display(),
                 shard.shard,
                 shard.scene_path.display(),
@@ -216,6 +234,12 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
         );
     }
 
+    if file_hash(&first.scene_path)? != first.scene_hash {
+        bail!(
+            "the scene `{}` has changed since its shards were rendered: render them again",
+            first.scene_path.display()
+        );
+    }
     let mut sums = first.sums.clone();
     for (shard, path) in shards.iter().zip(paths).skip(1) {
         sums.add(&shard.sums)

@@ -119,6 +119,25 @@ fn a_merge_names_missing_duplicate_foreign_and_damaged_shards() {
         "a merge",
     );
     assert!(e.contains("s1.lshard") && e.contains("past the end"), "{e}");
+    // The scene edited after its shards were rendered.
+    let scene = d.join("scene.ron");
+    std::fs::copy(repo().join("scenes/veach.ron"), &scene).expect("copy");
+    let args = |i: &str, out: &str| {
+        let mut args = vec!["render", "scene.ron", "--quiet", "--shard", i, "-o", out];
+        args.extend(RENDER);
+        args.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    let run = |args: Vec<String>| lumis(d, &args.iter().map(String::as_str).collect::<Vec<_>>());
+    ok(&run(args("0/2", "e0.lshard")), "a shard");
+    ok(&run(args("1/2", "e1.lshard")), "a shard");
+    let mut text = std::fs::read_to_string(&scene).expect("the scene");
+    text.push_str("\n// edited\n");
+    std::fs::write(&scene, text).expect("edit the scene");
+    let e = failure(lumis(d, &["merge", "e0.lshard", "e1.lshard"]), "a merge");
+    assert!(
+        e.contains("has changed since its shards were rendered"),
+        "{e}"
+    );
     let e = failure(render(d, &["--shard", "3/3"]), "shard 3/3");
     assert!(e.contains("0 ≤ i < n"), "{e}");
     assert!(
