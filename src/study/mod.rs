@@ -25,7 +25,7 @@ pub mod paper;
 pub mod plan;
 mod plots;
 pub mod reference;
-mod report;
+pub mod report;
 pub mod stats;
 pub mod summary;
 
@@ -35,7 +35,8 @@ pub use config::{
 };
 
 use anyhow::{Context as _, Result};
-use collect::{Collector, SceneAnalysis};
+use collect::Collector;
+pub use collect::SceneAnalysis;
 use indicatif::ProgressBar;
 use lumis_core::scene::load::load_scene;
 use plan::{Cell, ScenePlan, plan_scene};
@@ -73,8 +74,13 @@ impl Progress {
 
 /// Runs a study: every scene's reference, rounds of runs and report; stops at the next camera
 /// sample once `cancel` is set, after writing what it has (the finished scenes, and the current
-/// one with its complete runs).
-pub fn run(config: &StudyConfig, progress: &Progress, cancel: &AtomicBool) -> Result<()> {
+/// one with its complete runs). Returns the scenes' analyses, whose tables are
+/// [`report::results_table`] and [`report::trade_table`].
+pub fn run(
+    config: &StudyConfig,
+    progress: &Progress,
+    cancel: &AtomicBool,
+) -> Result<Vec<SceneAnalysis>> {
     config.validate()?;
     plots::register_font()?;
     std::fs::create_dir_all(&config.out)
@@ -117,7 +123,7 @@ pub fn run(config: &StudyConfig, progress: &Progress, cancel: &AtomicBool) -> Re
         ));
     }
     progress.bar.finish_and_clear();
-    Ok(())
+    Ok(finished)
 }
 
 /// Renders one scene's reference and runs, and adds its analysis to `finished`.
