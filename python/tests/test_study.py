@@ -2,6 +2,10 @@
 
 import csv
 import math
+import os
+import signal
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -147,3 +151,17 @@ def test_an_exception_in_progress_stops_the_study(tmp_path, small_scene):
 
     with pytest.raises(RuntimeError, match="stop here"):
         lumis.study(small_scene, tmp_path, progress=stop, **OPTIONS)
+
+
+@pytest.mark.skipif(os.name != "posix", reason="sends SIGINT")
+def test_ctrl_c_interrupts_the_study(tmp_path):
+    scene = Path(__file__).resolve().parents[2] / "scenes" / "veach.ron"
+    # Minutes of work on two cores (a reference of 2^20 samples per light per pixel): only an
+    # interrupt ends it within the test.
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        lumis.study(scene, tmp_path, **{**OPTIONS, "reference_samples": 1 << 20})
+    timer.join()
+    assert time.monotonic() - start < 30
