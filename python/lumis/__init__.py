@@ -9,7 +9,14 @@ Scenes in, numpy arrays out::
     result["alpha"][..., 0]        # the combined α map
     result.write("veach.exr")      # the same files as `lumis render -o veach.exr`
 
-See ``help(lumis.Scene.render)`` and ``lumis.plugins()``.
+Studies of the speed/accuracy trade, as ``lumis study`` runs them, return their tables::
+
+    study = lumis.study("scenes/paper/03.ron", "out", integrators="balance,light,alpha",
+                        budgets=[4, 8, 16], overrides={"film.width": 64, "film.height": 64})
+    study.results[0]["ratio_relative_variance"]    # and its _lo, _hi: the 95 % interval
+    study.dataframe("curves")                        # with pandas installed
+
+See ``help(lumis.Scene.render)``, ``help(lumis.study)`` and ``lumis.plugins()``.
 """
 
 from ._lumis import (
@@ -24,6 +31,7 @@ from ._lumis import (
     load_dict,
     plugins,
 )
+from ._study import Study, study
 
 __all__ = [
     "LumisError",
@@ -33,7 +41,9 @@ __all__ = [
     "RenderResult",
     "Scene",
     "SceneError",
+    "Study",
     "load",
     "load_dict",
     "plugins",
+    "study",
 ]

@@ -7,6 +7,7 @@
 //! catches unwinding and raises a `lumis.LumisError` instead.
 
 mod convert;
+mod study;
 
 use lumis_core::film::Film;
 use lumis_core::image_io::Metadata;
@@ -665,6 +666,7 @@ fn _lumis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(load_dict, m)?)?;
     m.add_function(wrap_pyfunction!(plugins, m)?)?;
+    m.add_function(wrap_pyfunction!(study::study, m)?)?;
     Ok(())
 }
 

@@ -31,7 +31,7 @@ pub mod paper;
 pub mod plan;
 mod plots;
 pub mod reference;
-mod report;
+pub mod report;
 pub mod stats;
 pub mod store;
 pub mod summary;
@@ -42,7 +42,8 @@ pub use config::{
 };
 
 use anyhow::{Context as _, Result};
-use collect::{Collector, SceneAnalysis};
+use collect::Collector;
+pub use collect::SceneAnalysis;
 use indicatif::ProgressBar;
 use lumis_core::scene::load::load_scene;
 use plan::{Cell, ScenePlan, plan_scene};
@@ -80,8 +81,9 @@ impl Progress {
 }
 
 /// Runs a study: every scene's reference, rounds of runs and report, and returns the finished
-/// scenes' analyses; stops at the next camera sample once `cancel` is set, after writing what
-/// it has (the finished scenes, and the current one with its complete runs).
+/// scenes' analyses (whose tables are [`report::results_table`] and [`report::trade_table`]);
+/// stops at the next camera sample once `cancel` is set, after writing what it has (the
+/// finished scenes, and the current one with its complete runs).
 pub fn run(
     config: &StudyConfig,
     progress: &Progress,

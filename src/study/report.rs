@@ -112,18 +112,54 @@ fn estimate_columns(name: &str) -> [String; 3] {
     [name.to_string(), format!("{name}_lo"), format!("{name}_hi")]
 }
 
-fn estimate_fields(e: Option<&Estimate>) -> [String; 3] {
+/// One field of a table: what `results.csv` and `trade.csv` print, and what the Python package
+/// returns as a value (`lumis.study`), so that the two cannot disagree.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Field {
+    Text(String),
+    Count(u64),
+    /// Printed in scientific notation, shortest round-trip digits.
+    Number(f64),
+    /// Printed with this many decimals.
+    Fixed(f64, usize),
+    /// Printed as the shortest decimal that reads back to it (a sweep's x).
+    Decimal(f64),
+    /// No value (an empty CSV field).
+    Missing,
+}
+
+impl std::fmt::Display for Field {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Field::Text(s) => f.write_str(s),
+            Field::Count(n) => write!(f, "{n}"),
+            Field::Number(v) => write!(f, "{v:e}"),
+            Field::Fixed(v, decimals) => write!(f, "{v:.decimals$}"),
+            Field::Decimal(v) => write!(f, "{v}"),
+            Field::Missing => Ok(()),
+        }
+    }
+}
+
+/// A table with named columns; every record has one field per column.
+#[derive(Clone, Debug)]
+pub struct Table {
+    pub columns: Vec<String>,
+    pub records: Vec<Vec<Field>>,
+}
+
+fn estimate_fields(e: Option<&Estimate>) -> [Field; 3] {
     e.map_or_else(
-        || [String::new(), String::new(), String::new()],
-        |e| [e.value, e.lo, e.hi].map(|v| format!("{v:e}")),
+        || [Field::Missing, Field::Missing, Field::Missing],
+        |e| [e.value, e.lo, e.hi].map(Field::Number),
     )
 }
 
-fn write_csv(path: &Path, header: Vec<String>, records: Vec<Vec<String>>) -> Result<()> {
+fn write_csv(path: &Path, table: &Table) -> Result<()> {
     let mut writer = csv::Writer::from_writer(Vec::new());
-    writer.write_record(&header)?;
-    for record in records {
-        writer.write_record(&record)?;
+    writer.write_record(&table.columns)?;
+    for record in &table.records {
+        writer.write_record(record.iter().map(Field::to_string))?;
     }
     let bytes = writer.into_inner()?;
     write_atomically(path, |file| {
@@ -179,25 +215,25 @@ fn row_columns() -> Vec<String> {
     header
 }
 
-fn row_record(s: &SceneAnalysis, group: &str, x: f64, r: &Row) -> Vec<String> {
+fn row_record(s: &SceneAnalysis, group: &str, x: f64, r: &Row) -> Vec<Field> {
     let mut record = vec![
-        s.name.clone(),
-        group.to_string(),
+        Field::Text(s.name.clone()),
+        Field::Text(group.to_string()),
         if x.is_finite() {
-            format!("{x}")
+            Field::Decimal(x)
         } else {
-            String::new()
+            Field::Missing
         },
-        r.label.clone(),
-        r.kind.clone(),
-        r.samples.to_string(),
-        r.runs.to_string(),
-        s.width.to_string(),
-        s.height.to_string(),
-        format!("{:e}", r.wall_time),
-        format!("{:.3}", r.z),
-        format!("{:.4}", r.relative_variance_top),
-        format!("{:.4}", r.variance_top),
+        Field::Text(r.label.clone()),
+        Field::Text(r.kind.clone()),
+        Field::Count(r.samples.into()),
+        Field::Count(r.runs as u64),
+        Field::Count(s.width.into()),
+        Field::Count(s.height.into()),
+        Field::Number(r.wall_time),
+        Field::Fixed(r.z, 3),
+        Field::Fixed(r.relative_variance_top, 4),
+        Field::Fixed(r.variance_top, 4),
     ];
     let q = &r.ratios;
     for e in [
@@ -228,8 +264,9 @@ fn row_record(s: &SceneAnalysis, group: &str, x: f64, r: &Row) -> Vec<String> {
     record
 }
 
-/// `results.csv` and `trade.csv`.
-pub fn write_csvs(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
+/// `results.csv`: one record per measured configuration (the curves' budgets, the paper's rows,
+/// the sweeps' points).
+pub fn results_table(scenes: &[SceneAnalysis]) -> Table {
     let mut records = Vec::new();
     for s in scenes {
         for r in s.rows.iter().flatten() {
@@ -243,9 +280,15 @@ pub fn write_csvs(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
             records.push(row_record(s, &group, p.x, &p.row));
         }
     }
-    write_csv(&out.join("results.csv"), row_columns(), records)?;
+    Table {
+        columns: row_columns(),
+        records,
+    }
+}
 
-    let mut header: Vec<String> = [
+/// `trade.csv`: per scene and integrator, what its curve says about the trade.
+pub fn trade_table(scenes: &[SceneAnalysis]) -> Table {
+    let mut columns: Vec<String> = [
         "scene",
         "integrator",
         "runs",
@@ -256,37 +299,40 @@ pub fn write_csvs(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
     .map(String::from)
     .to_vec();
     for name in ["time_to_target", "speedup", "equal_time_ratio"] {
-        header.extend(estimate_columns(name));
-        header.push(format!("{name}_extent"));
+        columns.extend(estimate_columns(name));
+        columns.push(format!("{name}_extent"));
     }
     let mut records = Vec::new();
     for s in scenes {
         for t in &s.trade {
             let mut record = vec![
-                s.name.clone(),
-                t.label.clone(),
-                s.runs.to_string(),
-                s.target_budget.to_string(),
-                format!("{:e}", s.target_error),
-                format!("{:e}", s.target_time),
+                Field::Text(s.name.clone()),
+                Field::Text(t.label.clone()),
+                Field::Count(s.runs as u64),
+                Field::Count(s.target_budget.into()),
+                Field::Number(s.target_error),
+                Field::Number(s.target_time),
             ];
             for r in [&t.time_to_target, &t.speedup, &t.equal_time_ratio] {
                 record.extend(estimate_fields(r.as_ref().map(|r| &r.estimate)));
-                record.push(
-                    match r.map(|r| r.extent) {
-                        None => "",
-                        Some(Extent::Within) => "within",
-                        Some(Extent::Extrapolated) => "extrapolated",
-                        Some(Extent::Beyond { above: true }) => "above",
-                        Some(Extent::Beyond { above: false }) => "below",
-                    }
-                    .to_string(),
-                );
+                record.push(match r.map(|r| r.extent) {
+                    None => Field::Missing,
+                    Some(Extent::Within) => Field::Text("within".into()),
+                    Some(Extent::Extrapolated) => Field::Text("extrapolated".into()),
+                    Some(Extent::Beyond { above: true }) => Field::Text("above".into()),
+                    Some(Extent::Beyond { above: false }) => Field::Text("below".into()),
+                });
             }
             records.push(record);
         }
     }
-    write_csv(&out.join("trade.csv"), header, records)
+    Table { columns, records }
+}
+
+/// `results.csv` and `trade.csv`.
+pub fn write_csvs(out: &Path, scenes: &[SceneAnalysis]) -> Result<()> {
+    write_csv(&out.join("results.csv"), &results_table(scenes))?;
+    write_csv(&out.join("trade.csv"), &trade_table(scenes))
 }
 
 /// The prefix that makes a path inside the output directory relative to the report's directory.
