@@ -401,4 +401,68 @@ mod tests {
             }
         }
     }
+
+    /// The kernel compiled for the baseline (what processors without AVX2 run) and the one the
+    /// dispatch picks here give the brute-force answer on random boxes standing for primitives.
+    #[test]
+    fn both_kernels_find_the_closest_and_any_hit() {
+        let mut sampler = crate::sampler::Sampler::new(11, 0, 0);
+        let mut point = |scale: f32| {
+            let (a, b) = (sampler.next_2d(), sampler.next_2d());
+            Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5) * scale
+        };
+        let boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let c = point(20.0);
+                let h = point(0.6).abs();
+                Aabb::new((c - h).into(), (c + h).into())
+            })
+            .collect();
+        let (cwbvh, _) = crate::bvh::build(&boxes);
+        let leaf_boxes: Vec<Aabb> = cwbvh
+            .primitive_indices
+            .iter()
+            .map(|&i| boxes[i as usize])
+            .collect();
+        let bvh = WideBvh::from_cwbvh(&cwbvh, &leaf_boxes);
+        // A primitive's distance: where the ray enters its box (lane 0 of a one-child node).
+        let entry = |test: &RayBoxTest, b: &Aabb, t_max: f32| {
+            let mut node = WideNode::EMPTY;
+            for axis in 0..3 {
+                node.bounds[2 * axis][0] = b.min[axis];
+                node.bounds[2 * axis + 1][0] = b.max[axis];
+            }
+            let (mask, t_near) = node_test(&node, test, f32::INFINITY);
+            (mask & 1 == 1 && t_near[0] < t_max).then_some(t_near[0])
+        };
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let origin = point(30.0);
+            let direction = point(1.0);
+            let t_max = if hits % 2 == 0 { f32::INFINITY } else { 20.0 };
+            let test = RayBoxTest::new(origin, direction);
+            let mut expected: Option<(f32, usize)> = None;
+            for (i, b) in leaf_boxes.iter().enumerate() {
+                if let Some(t) = entry(&test, b, expected.map_or(t_max, |e| e.0)) {
+                    expected = Some((t, i));
+                }
+            }
+            let hit = |i: usize, t: f32| entry(&test, &leaf_boxes[i], t);
+            let blocks = |i: usize| entry(&test, &leaf_boxes[i], t_max).is_some();
+            let t_of = |i: Option<usize>| i.map(|i| entry(&test, &leaf_boxes[i], t_max));
+            let expected_t = expected.map(|e| Some(e.0));
+            assert_eq!(
+                t_of(closest_hit_kernel(&bvh.nodes, &test, t_max, hit)),
+                expected_t
+            );
+            assert_eq!(t_of(bvh.closest_hit(&test, t_max, hit)), expected_t);
+            assert_eq!(
+                any_hit_kernel(&bvh.nodes, &test, t_max, blocks),
+                expected.is_some()
+            );
+            assert_eq!(bvh.any_hit(&test, t_max, blocks), expected.is_some());
+            hits += expected.is_some() as usize;
+        }
+        assert!(hits > 200, "only {hits} rays hit");
+    }
 }
