@@ -5,10 +5,12 @@
 //! outward to a coarse grid, so rays enter children they miss), converts them to floats per
 //! test, skips every box a ray leaves before an absolute t = 1e-4, and is built for SSE2 only.
 //! Here each node holds its eight children's boxes as `f32` in structure-of-arrays form, so one
-//! node test is a few 8-lane operations; x86-64 processors with AVX2 run the kernel compiled for
-//! them, chosen at run time (the binary still runs on any x86-64), and every other target runs
-//! the same code compiled for its baseline. Both compute the same IEEE operations in the same
-//! order (no fused multiply-add: Rust never contracts), so results do not depend on the CPU.
+//! node test is a few 8-lane operations; x86-64 processors with AVX2 run a kernel compiled for
+//! them with the node test in AVX intrinsics, chosen at run time (the binary still runs on any
+//! x86-64), and every other processor runs the portable node test, which the compiler
+//! vectorises for its baseline (SSE2 on x86-64, NEON on aarch64). Both compute the same IEEE operations in the same
+//! order (no fused multiply-add: Rust never contracts), so results do not depend on the CPU
+//! (a test compares the two bit for bit).
 //!
 //! The node test is conservative under rounding (Ize, "Robust BVH ray traversal", JCGT 2013;
 //! pbrt-v4 §6.8.2): the far distance is enlarged by 2γ₃, the bound of the error of
@@ -24,9 +26,9 @@ const LEAF: u32 = 1 << 31;
 /// An empty child slot in [`WideNode::child`] (its box is empty too, so no ray enters it).
 const EMPTY: u32 = u32::MAX;
 
-/// Entries of the traversal stack. A node pushes at most 7 children and the tree is shallower
-/// than 32 levels ([`crate::bvh`] keeps it so), so 7 · 32 entries suffice.
-const STACK_SIZE: usize = 7 * 32 + 1;
+/// Entries of the traversal stack: a node pushes at most 7 children, and the tree has fewer
+/// levels than [`crate::bvh::TRAVERSAL_STACK_SIZE`] ([`crate::bvh::build`] keeps it so).
+const STACK_SIZE: usize = 7 * crate::bvh::TRAVERSAL_STACK_SIZE + 1;
 
 /// Eight children's boxes and references (256 bytes, four cache lines).
 #[derive(Clone, Copy, Debug)]
@@ -91,7 +93,7 @@ impl WideBvh {
             // SAFETY: the processor has AVX2, checked just above.
             return unsafe { closest_hit_avx2(&self.nodes, ray, t_max, hit) };
         }
-        closest_hit_kernel(&self.nodes, ray, t_max, hit)
+        closest_hit_kernel(&self.nodes, ray, t_max, hit, node_test)
     }
 
     /// Whether `blocks(i)` holds for a primitive whose box the ray meets before `t_max`
@@ -106,26 +108,7 @@ impl WideBvh {
             // SAFETY: the processor has AVX2, checked just above.
             return unsafe { any_hit_avx2(&self.nodes, ray, t_max, blocks) };
         }
-        any_hit_kernel(&self.nodes, ray, t_max, blocks)
-    }
-
-    /// Depth of the tree in nodes (0 when empty).
-    pub fn depth(&self) -> usize {
-        fn depth_of(nodes: &[WideNode], node: usize) -> usize {
-            let n = &nodes[node];
-            1 + n
-                .child
-                .iter()
-                .filter(|&&c| c != EMPTY && c & LEAF == 0)
-                .map(|&c| depth_of(nodes, c as usize))
-                .max()
-                .unwrap_or(0)
-        }
-        if self.nodes.is_empty() {
-            0
-        } else {
-            depth_of(&self.nodes, 0)
-        }
+        any_hit_kernel(&self.nodes, ray, t_max, blocks, node_test)
     }
 }
 
@@ -232,26 +215,62 @@ fn node_test(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
     (mask, t_near)
 }
 
+/// The kernel compiled for AVX2 (the node test and the caller's primitive tests inlined).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn closest_hit_avx2(
+fn closest_hit_avx2(
     nodes: &[WideNode],
     ray: &RayBoxTest,
     t_max: f32,
     hit: impl FnMut(usize, f32) -> Option<f32>,
 ) -> Option<usize> {
-    closest_hit_kernel(nodes, ray, t_max, hit)
+    // Closures in a `target_feature` function have its features: this call is safe.
+    closest_hit_kernel(nodes, ray, t_max, hit, |n, r, t| node_test_avx2(n, r, t))
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn any_hit_avx2(
+fn any_hit_avx2(
     nodes: &[WideNode],
     ray: &RayBoxTest,
     t_max: f32,
     blocks: impl FnMut(usize) -> bool,
 ) -> bool {
-    any_hit_kernel(nodes, ray, t_max, blocks)
+    any_hit_kernel(nodes, ray, t_max, blocks, |n, r, t| node_test_avx2(n, r, t))
+}
+
+/// [`node_test`] in AVX intrinsics: the same operations in the same order (so the same
+/// results, bit for bit), without the shuffles the compiler adds when it vectorises the
+/// portable form.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn node_test_avx2(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+    let mut t_near = _mm256_setzero_ps();
+    let mut t_far = _mm256_set1_ps(t_max);
+    for axis in 0..3 {
+        // SAFETY: each row of `bounds` is 8 f32.
+        let (near_planes, far_planes) = unsafe {
+            (
+                _mm256_loadu_ps(node.bounds[ray.near[axis]].as_ptr()),
+                _mm256_loadu_ps(node.bounds[ray.near[axis] ^ 1].as_ptr()),
+            )
+        };
+        let o = _mm256_set1_ps(ray.origin[axis]);
+        let inv = _mm256_set1_ps(ray.inv_direction[axis]);
+        let n = _mm256_mul_ps(_mm256_sub_ps(near_planes, o), inv);
+        let f = _mm256_mul_ps(_mm256_sub_ps(far_planes, o), inv);
+        // max_ps(a, b) is `a > b ? a : b`, min_ps(a, b) `a < b ? a : b`, as in node_test.
+        t_near = _mm256_max_ps(n, t_near);
+        t_far = _mm256_min_ps(f, t_far);
+    }
+    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
+    let mut near = [0.0f32; 8];
+    // SAFETY: `near` holds 8 f32.
+    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), t_near) };
+    (mask, near)
 }
 
 /// Closest-hit traversal: leaves are tested as their node is, inner children are visited
@@ -262,6 +281,7 @@ fn closest_hit_kernel(
     ray: &RayBoxTest,
     mut t_max: f32,
     mut hit: impl FnMut(usize, f32) -> Option<f32>,
+    node_test: impl Fn(&WideNode, &RayBoxTest, f32) -> (u32, [f32; 8]),
 ) -> Option<usize> {
     let mut stack = [(0u32, 0.0f32); STACK_SIZE];
     let mut depth = 0;
@@ -328,6 +348,7 @@ fn any_hit_kernel(
     ray: &RayBoxTest,
     t_max: f32,
     mut blocks: impl FnMut(usize) -> bool,
+    node_test: impl Fn(&WideNode, &RayBoxTest, f32) -> (u32, [f32; 8]),
 ) -> bool {
     let mut stack = [0u32; STACK_SIZE];
     let mut depth = 0;
@@ -452,17 +473,56 @@ mod tests {
             let t_of = |i: Option<usize>| i.map(|i| entry(&test, &leaf_boxes[i], t_max));
             let expected_t = expected.map(|e| Some(e.0));
             assert_eq!(
-                t_of(closest_hit_kernel(&bvh.nodes, &test, t_max, hit)),
+                t_of(closest_hit_kernel(&bvh.nodes, &test, t_max, hit, node_test)),
                 expected_t
             );
             assert_eq!(t_of(bvh.closest_hit(&test, t_max, hit)), expected_t);
             assert_eq!(
-                any_hit_kernel(&bvh.nodes, &test, t_max, blocks),
+                any_hit_kernel(&bvh.nodes, &test, t_max, blocks, node_test),
                 expected.is_some()
             );
             assert_eq!(bvh.any_hit(&test, t_max, blocks), expected.is_some());
             hits += expected.is_some() as usize;
         }
         assert!(hits > 200, "only {hits} rays hit");
+    }
+
+    /// The AVX2 node test gives the portable one's answers bit for bit (random boxes, empty
+    /// slots, rays with zero direction components).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_node_test_equals_the_portable_one() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
+        let mut value = || {
+            let u = sampler.next_2d();
+            (u.x - 0.5) * 10.0 * u.y
+        };
+        for round in 0..5000 {
+            let mut node = WideNode::EMPTY;
+            for lane in 0..(round % 9) {
+                for axis in 0..3 {
+                    let (a, b) = (value(), value());
+                    node.bounds[2 * axis][lane] = a.min(b);
+                    node.bounds[2 * axis + 1][lane] = a.max(b);
+                }
+            }
+            let origin = Vec3::new(value(), value(), value());
+            let mut direction = Vec3::new(value(), value(), value());
+            direction[round % 3] = if round % 2 == 0 { 0.0 } else { -0.0 };
+            let test = RayBoxTest::new(origin, direction);
+            let t_max = if round % 4 == 0 {
+                f32::INFINITY
+            } else {
+                value().abs()
+            };
+            let (mask, near) = node_test(&node, &test, t_max);
+            // SAFETY: AVX2 is present (checked above).
+            let (mask_avx2, near_avx2) = unsafe { node_test_avx2(&node, &test, t_max) };
+            assert_eq!(mask, mask_avx2);
+            assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
+        }
     }
 }
