@@ -1,4 +1,5 @@
-//! Ray queries: an obvhs compressed-wide BVH (CWBVH) over every triangle and sphere of the scene.
+//! Ray queries over every triangle and sphere of the scene: a BVH built by obvhs (as its
+//! compressed-wide CWBVH) and traversed as an 8-wide BVH with exact boxes ([`crate::wide_bvh`]).
 //!
 //! Self-intersection is avoided as in pbrt-v4 (§6.8): each hit carries a conservative bound on
 //! the rounding error of its position, and rays leave a surface from an origin pushed just past
