@@ -1,4 +1,5 @@
-//! Ray queries: an obvhs compressed-wide BVH (CWBVH) over every triangle and sphere of the scene.
+//! Ray queries over every triangle and sphere of the scene: a BVH built by obvhs (as its
+//! compressed-wide CWBVH) and traversed as an 8-wide BVH with exact boxes ([`crate::wide_bvh`]).
 //!
 //! Self-intersection is avoided as in pbrt-v4 (§6.8): each hit carries a conservative bound on
 //! the rounding error of its position, and rays leave a surface from an origin pushed just past
@@ -8,11 +9,10 @@
 use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use crate::math::{gamma, next_float_down, next_float_up};
 use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal};
-use glam::{Vec3, Vec3A};
+use crate::wide_bvh::{RayBoxTest, WideBvh, sphere_box};
+use glam::Vec3;
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::CwBvh;
-use obvhs::ray::{Ray as BvhRay, RayHit};
 use std::cell::Cell;
 
 thread_local! {
@@ -137,11 +137,7 @@ impl Boundable for Primitive {
             Primitive::Triangle { p, .. } => {
                 Aabb::from_points(&[p[0].into(), p[1].into(), p[2].into()])
             }
-            Primitive::Sphere { sphere, .. } => {
-                let r = Vec3A::splat(sphere.radius);
-                let c = Vec3A::from(sphere.center);
-                Aabb::new(c - r, c + r)
-            }
+            Primitive::Sphere { sphere, .. } => sphere_box(sphere.center, sphere.radius),
         }
     }
 }
@@ -394,20 +390,16 @@ pub struct Geometry {
     shapes: Vec<ShapeGeometry>,
     /// Primitives in BVH leaf order.
     primitives: Vec<Primitive>,
-    bvh: CwBvh,
-    /// The power of two the BVH's space is scaled by (see [`bvh_scale`]).
-    bvh_scale: f32,
+    bvh: WideBvh,
 }
 
 /// Size (largest extent) the scene has in the BVH's space, a power of two.
 const BVH_SCENE_SIZE_LOG2: i32 = 10;
 
-/// The power of two that scales a scene whose boxes span `total` to about 2^10 in the BVH's
-/// space. obvhs skips every node a ray leaves before t = 1e-4 (an absolute constant in its
-/// node test): unscaled, a scene 1e-5 across was invisible, and in any scene an occluder within
-/// 1e-4 units of a shading point was missed. Scaled, the skipped distance is about 1e-7 of the
-/// scene's size whatever its units, below the rounding error of its coordinates. A power of two
-/// scales coordinates exactly.
+/// The power of two that scales a scene whose boxes span `total` to about 2^10 in the space
+/// obvhs builds in: its builder and its CWBVH quantisation are tuned for scenes of ordinary
+/// size (obvhs's own traversal also skipped every node before an absolute t = 1e-4). A power of
+/// two scales coordinates exactly; the traversal uses the unscaled, exact boxes.
 fn bvh_scale(total: &Aabb) -> f32 {
     let extent = (total.max - total.min).max_element();
     if !(extent > 0.0 && extent.is_finite()) {
@@ -459,8 +451,14 @@ impl Geometry {
             .iter()
             .map(|b| Aabb::new(b.min * scale, b.max * scale))
             .collect();
-        let (bvh, _) = crate::bvh::build(&scaled);
-        let primitives = bvh
+        let (cwbvh, _) = crate::bvh::build(&scaled);
+        let leaf_boxes: Vec<Aabb> = cwbvh
+            .primitive_indices
+            .iter()
+            .map(|&i| boxes[i as usize])
+            .collect();
+        let bvh = WideBvh::from_cwbvh(&cwbvh, &leaf_boxes);
+        let primitives = cwbvh
             .primitive_indices
             .iter()
             .map(|&i| prims[i as usize])
@@ -469,30 +467,11 @@ impl Geometry {
             shapes,
             primitives,
             bvh,
-            bvh_scale: scale,
         }
     }
 
     pub fn shapes(&self) -> &[ShapeGeometry] {
         &self.shapes
-    }
-
-    /// The ray in the BVH's space, with a unit direction, and the factor k with which a
-    /// distance t along `ray` is k·t along it; `None` for a ray without a direction.
-    fn bvh_ray(&self, ray: &Ray) -> Option<(BvhRay, f32)> {
-        let length = ray.direction.length();
-        if !(length > 0.0 && length.is_finite()) {
-            return None;
-        }
-        // Adding +0 turns -0 components into +0: obvhs takes the direction's octant from the
-        // comparison with zero but the inverse's sign from signum, which disagree for -0.
-        let direction = ray.direction / length + Vec3::ZERO;
-        let k = self.bvh_scale * length;
-        let origin = ray.origin * self.bvh_scale;
-        Some((
-            BvhRay::new(origin.into(), direction.into(), 0.0, ray.t_max * k),
-            k,
-        ))
     }
 
     /// The closest intersection along the ray, if any.
@@ -508,38 +487,31 @@ impl Geometry {
         if self.primitives.is_empty() {
             return None;
         }
-        let (bvh_ray, k) = self.bvh_ray(ray)?;
         let shear = RayShear::new(ray.direction);
-        // The closest hit so far, in the units of `ray` (the traversal's own distances are
-        // rounded from these, so they only prune).
-        let mut closest: Option<FirstHit> = None;
-        let mut t_max = ray.t_max;
-        self.bvh
-            .ray_traverse(bvh_ray, &mut RayHit::none(), |_, slot| {
-                let (t, shape, barycentrics) = match &self.primitives[slot] {
-                    Primitive::Triangle { p, shape, .. } => {
-                        match intersect_triangle(ray, &shear, t_max, p) {
-                            Some((t, b)) if t < t_max => (t, *shape, b),
-                            _ => return f32::INFINITY,
-                        }
-                    }
-                    Primitive::Sphere { sphere, shape } => {
-                        match intersect_sphere(ray, t_max, sphere) {
-                            Some(t) => (t, *shape, [0.0; 3]),
-                            None => return f32::INFINITY,
-                        }
-                    }
-                };
-                t_max = t;
-                closest = Some(FirstHit {
-                    t,
-                    shape,
-                    slot: slot as u32,
-                    barycentrics,
-                });
-                t * k
-            });
-        closest
+        let boxes = RayBoxTest::new(ray.origin, ray.direction);
+        // Of the closest hit so far (the traversal's last accepted primitive).
+        let (mut t_hit, mut barycentrics) = (ray.t_max, [0.0; 3]);
+        let slot = self.bvh.closest_hit(&boxes, ray.t_max, |slot, t_max| {
+            let (t, b) = match &self.primitives[slot] {
+                Primitive::Triangle { p, .. } => intersect_triangle(ray, &shear, t_max, p)?,
+                Primitive::Sphere { sphere, .. } => {
+                    (intersect_sphere(ray, t_max, sphere)?, [0.0; 3])
+                }
+            };
+            (t < t_max).then(|| {
+                (t_hit, barycentrics) = (t, b);
+                t
+            })
+        })?;
+        let shape = match &self.primitives[slot] {
+            Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => *shape,
+        };
+        Some(FirstHit {
+            t: t_hit,
+            shape,
+            slot: slot as u32,
+            barycentrics,
+        })
     }
 
     /// The intersection record of a hit [`Geometry::first_hit`] found along `ray`.
@@ -599,21 +571,16 @@ impl Geometry {
         if self.primitives.is_empty() {
             return false;
         }
-        let Some((bvh_ray, _)) = self.bvh_ray(ray) else {
-            return false;
-        };
         let shear = RayShear::new(ray.direction);
-        // Any hit before `ray.t_max` ends the traversal: 0 is below its bound.
-        !self.bvh.ray_traverse_miss(bvh_ray, |_, slot| {
-            let blocked = match &self.primitives[slot] {
+        let boxes = RayBoxTest::new(ray.origin, ray.direction);
+        self.bvh
+            .any_hit(&boxes, ray.t_max, |slot| match &self.primitives[slot] {
                 Primitive::Triangle { p, .. } => intersect_triangle(ray, &shear, ray.t_max, p)
                     .is_some_and(|(t, _)| t < ray.t_max),
                 Primitive::Sphere { sphere, .. } => {
                     intersect_sphere(ray, ray.t_max, sphere).is_some()
                 }
-            };
-            if blocked { 0.0 } else { f32::INFINITY }
-        })
+            })
     }
 }
 

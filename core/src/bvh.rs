@@ -3,9 +3,9 @@
 //! obvhs's PLOC builder gives good trees fast on ordinary meshes, but on heavily overlapping
 //! primitives (a fan of thin triangles sharing a vertex, as in a disk or a cylinder cap) it makes
 //! trees whose depth grows linearly with the primitive count, in time that grows about
-//! quadratically (a 65 536-triangle fan: depth 101, 17 s; 262 144: minutes). obvhs traverses
-//! with a fixed stack of 32 entries and, past it, silently drops nodes in release builds (it
-//! asserts in debug builds): such a tree loses intersections. So:
+//! quadratically (a 65 536-triangle fan: depth 101, 17 s; 262 144: minutes). The traversal
+//! ([`crate::wide_bvh`]) has a fixed stack sized for trees shallower than 32 levels, as obvhs's
+//! own (which silently drops nodes past it in release builds). So:
 //! - inputs whose primitive boxes overlap far more than a surface's do are built top-down with
 //!   binned SAH, whose depth is bounded (below);
 //! - every PLOC tree's depth is measured, and one as deep as the traversal stack is rebuilt the
@@ -19,8 +19,9 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use std::time::Duration;
 
-/// obvhs's traversal stack (`cwbvh::TRAVERSAL_STACK_SIZE`, private): trees must be shallower.
-const TRAVERSAL_STACK_SIZE: usize = 32;
+/// Trees must be shallower than this: the traversal's stack ([`crate::wide_bvh`]) is sized for
+/// it (as obvhs's, `cwbvh::TRAVERSAL_STACK_SIZE`).
+pub(crate) const TRAVERSAL_STACK_SIZE: usize = 32;
 
 /// Depth the top-down builder keeps its BVH2 within (a CWBVH is never deeper than the BVH2 it
 /// collapses), leaving a margin below [`TRAVERSAL_STACK_SIZE`].
@@ -40,8 +41,8 @@ pub enum Builder {
     BinnedSah,
 }
 
-/// Builds the CWBVH over primitives with the boxes `aabbs`; its depth is below obvhs's
-/// traversal stack.
+/// Builds the CWBVH over primitives with the boxes `aabbs`; its depth is below
+/// [`TRAVERSAL_STACK_SIZE`].
 pub fn build(aabbs: &[Aabb]) -> (CwBvh, Builder) {
     if !heavily_overlapping(aabbs) {
         let bvh = obvhs::cwbvh::builder::build_cwbvh(

@@ -21,5 +21,6 @@ pub mod render;
 pub mod render_files;
 pub mod sampler;
 pub mod scene;
+pub mod wide_bvh;
 
 pub use inventory;

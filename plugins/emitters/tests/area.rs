@@ -103,8 +103,6 @@ fn check(light: &dyn Emitter, geometry: &Geometry, from: Vec3, u: Vec2) -> bool 
 }
 
 #[test]
-#[ignore = "needs BVH boxes widened by the node test's rounding; that change tripped an obvhs \
-            assertion on a fuzz-corpus scene and was withdrawn, to be redone on main's BVH builder"]
 fn samples_on_the_edges_of_a_square_light_are_reached_by_their_rays() {
     let (light, geometry) = square_light();
     let along: Vec<f32> = (0..2048).map(|k| (k as f32 + 0.37) / 2048.0).collect();

@@ -1,0 +1,528 @@
+//! An eight-wide BVH with exact, uncompressed child boxes, and its traversal: the shape of the
+//! tree is obvhs's CWBVH (its builder and its collapse into 8-wide nodes), the node test is ours.
+//!
+//! Why not obvhs's own traversal: its node test reads child boxes quantised to 8 bits (rounded
+//! outward to a coarse grid, so rays enter children they miss), converts them to floats per
+//! test, skips every box a ray leaves before an absolute t = 1e-4, and is built for SSE2 only.
+//! Here each node holds its eight children's boxes as `f32` in structure-of-arrays form, so one
+//! node test is a few 8-lane operations; x86-64 processors with AVX2 run a kernel compiled for
+//! them with the node test in AVX intrinsics, chosen at run time (the binary still runs on any
+//! x86-64), and every other processor runs the portable node test, which the compiler
+//! vectorises for its baseline (SSE2 on x86-64, NEON on aarch64). Both compute the same IEEE operations in the same
+//! order (no fused multiply-add: Rust never contracts), so results do not depend on the CPU
+//! (a test compares the two bit for bit).
+//!
+//! The node test is conservative under rounding (Ize, "Robust BVH ray traversal", JCGT 2013;
+//! pbrt-v4 §6.8.2): the far distance is enlarged by 2γ₃, the bound of the error of
+//! `(plane − origin) · (1 / direction)`. A ray aimed exactly at the edge of a flat box (an
+//! axis-aligned square light) therefore enters it, where a rounded slab test can miss it.
+
+use crate::math::{gamma, next_float_down, next_float_up};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::CwBvh;
+
+/// Marks a leaf in [`WideNode::child`]; the other bits are its first primitive.
+const LEAF: u32 = 1 << 31;
+/// An empty child slot in [`WideNode::child`] (its box is empty too, so no ray enters it).
+const EMPTY: u32 = u32::MAX;
+
+/// Entries of the traversal stack: a node pushes at most 7 children, and the tree has fewer
+/// levels than [`crate::bvh::TRAVERSAL_STACK_SIZE`] ([`crate::bvh::build`] keeps it so).
+const STACK_SIZE: usize = 7 * crate::bvh::TRAVERSAL_STACK_SIZE + 1;
+
+/// Eight children's boxes and references (256 bytes, four cache lines).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct WideNode {
+    /// min x, max x, min y, max y, min z, max z of each child; an empty slot has min = +∞ and
+    /// max = −∞.
+    bounds: [[f32; 8]; 6],
+    /// Inner child: its node index; leaf: [`LEAF`] | its first primitive; empty: [`EMPTY`].
+    child: [u32; 8],
+    /// Primitives of each leaf child (1 to 3).
+    count: [u8; 8],
+}
+
+impl WideNode {
+    const EMPTY: WideNode = WideNode {
+        bounds: [
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+        ],
+        child: [EMPTY; 8],
+        count: [0; 8],
+    };
+}
+
+/// The BVH: node 0 is the root. Leaves index primitives in obvhs's leaf order
+/// (`CwBvh::primitive_indices`), which is the order the caller keeps its primitives in.
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    nodes: Vec<WideNode>,
+}
+
+impl WideBvh {
+    /// The tree of `bvh` with exact boxes: `leaf_boxes[i]` bounds the `i`-th primitive in leaf
+    /// order (in the space rays are given in, which need not be the space `bvh` was built in).
+    pub fn from_cwbvh(bvh: &CwBvh, leaf_boxes: &[Aabb]) -> Self {
+        let mut nodes = vec![WideNode::EMPTY; bvh.nodes.len()];
+        if !nodes.is_empty() {
+            fill(bvh, 0, leaf_boxes, &mut nodes);
+        }
+        WideBvh { nodes }
+    }
+
+    /// The closest primitive along the ray. `hit(i, t_max)` tests primitive `i` and returns its
+    /// distance if it is hit before `t_max`; the answer is the last `i` it accepted.
+    #[inline]
+    pub fn closest_hit(
+        &self,
+        ray: &RayBoxTest,
+        t_max: f32,
+        hit: impl FnMut(usize, f32) -> Option<f32>,
+    ) -> Option<usize> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { closest_hit_avx2(&self.nodes, ray, t_max, hit) };
+        }
+        closest_hit_kernel(&self.nodes, ray, t_max, hit, node_test)
+    }
+
+    /// Whether `blocks(i)` holds for a primitive whose box the ray meets before `t_max`
+    /// (stopping at the first).
+    #[inline]
+    pub fn any_hit(&self, ray: &RayBoxTest, t_max: f32, blocks: impl FnMut(usize) -> bool) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { any_hit_avx2(&self.nodes, ray, t_max, blocks) };
+        }
+        any_hit_kernel(&self.nodes, ray, t_max, blocks, node_test)
+    }
+}
+
+/// Fills `nodes[index]` from the CWBVH node of that index and returns its box (post-order: the
+/// children's boxes are needed first; the depth is below 32, so recursion is safe).
+fn fill(bvh: &CwBvh, index: usize, leaf_boxes: &[Aabb], nodes: &mut [WideNode]) -> Aabb {
+    let source = &bvh.nodes[index];
+    let mut node = WideNode::EMPTY;
+    let mut total = Aabb::empty();
+    let mut slot = 0;
+    for child in 0..8 {
+        if source.is_child_empty(child) {
+            continue;
+        }
+        let bounds = if source.is_leaf(child) {
+            let (first, count) = source.child_primitives(child);
+            node.child[slot] = LEAF | first;
+            node.count[slot] = count as u8;
+            leaf_boxes[first as usize..(first + count) as usize]
+                .iter()
+                .fold(Aabb::empty(), |a, b| a.union(b))
+        } else {
+            let inner = source.child_node_index(child);
+            node.child[slot] = inner;
+            fill(bvh, inner as usize, leaf_boxes, nodes)
+        };
+        for axis in 0..3 {
+            node.bounds[2 * axis][slot] = bounds.min[axis];
+            node.bounds[2 * axis + 1][slot] = bounds.max[axis];
+        }
+        total = total.union(&bounds);
+        slot += 1;
+    }
+    nodes[index] = node;
+    total
+}
+
+/// The box of a sphere, rounded outward (`center ± radius` in f32 may round inward).
+pub fn sphere_box(center: glam::Vec3, radius: f32) -> Aabb {
+    let lo = (center - radius).to_array().map(next_float_down);
+    let hi = (center + radius).to_array().map(next_float_up);
+    Aabb::new(lo.into(), hi.into())
+}
+
+/// Per-ray constants of the node test: the origin, the reciprocal direction (with ±f32::MAX
+/// for a zero component, so that no lane computes 0 · ∞), and which bound is near per axis.
+#[derive(Clone, Copy, Debug)]
+pub struct RayBoxTest {
+    origin: [f32; 3],
+    inv_direction: [f32; 3],
+    /// Index into [`WideNode::bounds`] of each axis's near plane (min for a positive direction).
+    near: [usize; 3],
+}
+
+impl RayBoxTest {
+    pub fn new(origin: glam::Vec3, direction: glam::Vec3) -> Self {
+        let inv_direction = direction.to_array().map(|d| {
+            let inv = 1.0 / d;
+            if inv.is_finite() {
+                inv
+            } else {
+                f32::MAX.copysign(inv)
+            }
+        });
+        let near = [0, 1, 2].map(|axis| 2 * axis + (inv_direction[axis] < 0.0) as usize);
+        RayBoxTest {
+            origin: origin.to_array(),
+            inv_direction,
+            near,
+        }
+    }
+}
+
+/// 1 + 2γ₃: the far distance's enlargement that makes the slab test conservative.
+fn far_scale() -> f32 {
+    1.0 + 2.0 * gamma(3)
+}
+
+/// The children of `node` that the ray enters before `t_max`, as a bit mask, and the distances
+/// at which it enters them. Written lane-wise over arrays of 8 so that the compiler turns each
+/// line into one 8-wide (AVX2) or two 4-wide (SSE2) operations.
+#[inline(always)]
+fn node_test(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    let mut t_near = [0.0f32; 8];
+    let mut t_far = [t_max; 8];
+    for axis in 0..3 {
+        let near_planes = &node.bounds[ray.near[axis]];
+        let far_planes = &node.bounds[ray.near[axis] ^ 1];
+        let (o, inv) = (ray.origin[axis], ray.inv_direction[axis]);
+        for lane in 0..8 {
+            let n = (near_planes[lane] - o) * inv;
+            let f = (far_planes[lane] - o) * inv;
+            // Comparisons rather than f32::max/min: no NaN arises here, and these compile to
+            // single max/min instructions.
+            t_near[lane] = if n > t_near[lane] { n } else { t_near[lane] };
+            t_far[lane] = if f < t_far[lane] { f } else { t_far[lane] };
+        }
+    }
+    let scale = far_scale();
+    let mut mask = 0u32;
+    for lane in 0..8 {
+        mask |= ((t_near[lane] <= t_far[lane] * scale) as u32) << lane;
+    }
+    (mask, t_near)
+}
+
+/// The kernel compiled for AVX2 (the node test and the caller's primitive tests inlined).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn closest_hit_avx2(
+    nodes: &[WideNode],
+    ray: &RayBoxTest,
+    t_max: f32,
+    hit: impl FnMut(usize, f32) -> Option<f32>,
+) -> Option<usize> {
+    // Closures in a `target_feature` function have its features: this call is safe.
+    closest_hit_kernel(nodes, ray, t_max, hit, |n, r, t| node_test_avx2(n, r, t))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn any_hit_avx2(
+    nodes: &[WideNode],
+    ray: &RayBoxTest,
+    t_max: f32,
+    blocks: impl FnMut(usize) -> bool,
+) -> bool {
+    any_hit_kernel(nodes, ray, t_max, blocks, |n, r, t| node_test_avx2(n, r, t))
+}
+
+/// [`node_test`] in AVX intrinsics: the same operations in the same order (so the same
+/// results, bit for bit), without the shuffles the compiler adds when it vectorises the
+/// portable form.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn node_test_avx2(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+    let mut t_near = _mm256_setzero_ps();
+    let mut t_far = _mm256_set1_ps(t_max);
+    for axis in 0..3 {
+        // SAFETY: each row of `bounds` is 8 f32.
+        let (near_planes, far_planes) = unsafe {
+            (
+                _mm256_loadu_ps(node.bounds[ray.near[axis]].as_ptr()),
+                _mm256_loadu_ps(node.bounds[ray.near[axis] ^ 1].as_ptr()),
+            )
+        };
+        let o = _mm256_set1_ps(ray.origin[axis]);
+        let inv = _mm256_set1_ps(ray.inv_direction[axis]);
+        let n = _mm256_mul_ps(_mm256_sub_ps(near_planes, o), inv);
+        let f = _mm256_mul_ps(_mm256_sub_ps(far_planes, o), inv);
+        // max_ps(a, b) is `a > b ? a : b`, min_ps(a, b) `a < b ? a : b`, as in node_test.
+        t_near = _mm256_max_ps(n, t_near);
+        t_far = _mm256_min_ps(f, t_far);
+    }
+    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
+    let mut near = [0.0f32; 8];
+    // SAFETY: `near` holds 8 f32.
+    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), t_near) };
+    (mask, near)
+}
+
+/// Closest-hit traversal: leaves are tested as their node is, inner children are visited
+/// nearest first, and stacked ones the ray no longer reaches before its closest hit are skipped.
+#[inline(always)]
+fn closest_hit_kernel(
+    nodes: &[WideNode],
+    ray: &RayBoxTest,
+    mut t_max: f32,
+    mut hit: impl FnMut(usize, f32) -> Option<f32>,
+    node_test: impl Fn(&WideNode, &RayBoxTest, f32) -> (u32, [f32; 8]),
+) -> Option<usize> {
+    let mut stack = [(0u32, 0.0f32); STACK_SIZE];
+    let mut depth = 0;
+    let mut closest = None;
+    let mut node = 0u32;
+    let scale = far_scale();
+    loop {
+        let current = &nodes[node as usize];
+        let (mut mask, t_near) = node_test(current, ray, t_max);
+        // Inner children hit, nearest first (insertion sort of at most 8).
+        let mut inner = [(0u32, 0.0f32); 8];
+        let mut inner_count = 0;
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let child = current.child[lane];
+            if child & LEAF != 0 {
+                let first = (child & !LEAF) as usize;
+                for primitive in first..first + current.count[lane] as usize {
+                    if let Some(t) = hit(primitive, t_max) {
+                        t_max = t;
+                        closest = Some(primitive);
+                    }
+                }
+            } else {
+                let entry = (child, t_near[lane]);
+                let mut i = inner_count;
+                while i > 0 && inner[i - 1].1 > entry.1 {
+                    inner[i] = inner[i - 1];
+                    i -= 1;
+                }
+                inner[i] = entry;
+                inner_count += 1;
+            }
+        }
+        let bound = t_max * scale;
+        if inner_count > 0 && inner[0].1 <= bound {
+            for &entry in inner[1..inner_count].iter().rev() {
+                stack[depth] = entry;
+                depth += 1;
+            }
+            node = inner[0].0;
+            continue;
+        }
+        // Pop the next child the ray still reaches before its closest hit.
+        loop {
+            if depth == 0 {
+                return closest;
+            }
+            depth -= 1;
+            let (next, t_enter) = stack[depth];
+            if t_enter <= t_max * scale {
+                node = next;
+                break;
+            }
+        }
+    }
+}
+
+/// Any-hit traversal: stops at the first primitive that blocks the ray.
+#[inline(always)]
+fn any_hit_kernel(
+    nodes: &[WideNode],
+    ray: &RayBoxTest,
+    t_max: f32,
+    mut blocks: impl FnMut(usize) -> bool,
+    node_test: impl Fn(&WideNode, &RayBoxTest, f32) -> (u32, [f32; 8]),
+) -> bool {
+    let mut stack = [0u32; STACK_SIZE];
+    let mut depth = 0;
+    let mut node = 0u32;
+    loop {
+        let current = &nodes[node as usize];
+        let (mut mask, _) = node_test(current, ray, t_max);
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let child = current.child[lane];
+            if child & LEAF != 0 {
+                let first = (child & !LEAF) as usize;
+                for primitive in first..first + current.count[lane] as usize {
+                    if blocks(primitive) {
+                        return true;
+                    }
+                }
+            } else {
+                stack[depth] = child;
+                depth += 1;
+            }
+        }
+        if depth == 0 {
+            return false;
+        }
+        depth -= 1;
+        node = stack[depth];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Vec3, Vec3A};
+
+    /// The node test is conservative: a ray aimed at any point of a box's boundary, from any
+    /// side, enters it, flat boxes included (the rounded slab test misses some).
+    #[test]
+    fn rays_aimed_at_box_boundaries_enter_the_box() {
+        let boxes = [
+            Aabb::new(Vec3A::new(-1.0, 0.0, -1.0), Vec3A::new(1.0, 0.0, 1.0)),
+            Aabb::new(Vec3A::new(0.1, 0.2, 0.3), Vec3A::new(0.7, 1.9, 0.31)),
+        ];
+        let mut sampler = crate::sampler::Sampler::new(7, 0, 0);
+        for b in boxes {
+            let mut node = WideNode::EMPTY;
+            for axis in 0..3 {
+                node.bounds[2 * axis][0] = b.min[axis];
+                node.bounds[2 * axis + 1][0] = b.max[axis];
+            }
+            for _ in 0..20_000 {
+                let u = sampler.next_2d();
+                let v = sampler.next_2d();
+                // A point on the boundary: one coordinate on a face, the others inside.
+                let face = (v.x * 6.0) as usize % 6;
+                let (axis, on_max) = (face / 2, face % 2 == 1);
+                let mut target: [f32; 3] = std::array::from_fn(|a| {
+                    let s = if a == (axis + 1) % 3 { u.x } else { u.y };
+                    b.min[a] + s * (b.max[a] - b.min[a])
+                });
+                target[axis] = if on_max { b.max[axis] } else { b.min[axis] };
+                let target = Vec3::from(target);
+                let dir = Vec3::new(v.y - 0.5, u.x * 2.0 - 1.0, u.y - 0.3);
+                let origin = target + dir * 10.0;
+                let test = RayBoxTest::new(origin, target - origin);
+                let (mask, _) = node_test(&node, &test, 1.0);
+                assert_eq!(mask & 1, 1, "box {b:?}, from {origin} to {target}");
+                // Empty slots are never entered.
+                assert_eq!(mask & !1, 0);
+            }
+        }
+    }
+
+    /// The kernel compiled for the baseline (what processors without AVX2 run) and the one the
+    /// dispatch picks here give the brute-force answer on random boxes standing for primitives.
+    #[test]
+    fn both_kernels_find_the_closest_and_any_hit() {
+        let mut sampler = crate::sampler::Sampler::new(11, 0, 0);
+        let mut point = |scale: f32| {
+            let (a, b) = (sampler.next_2d(), sampler.next_2d());
+            Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5) * scale
+        };
+        let boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let c = point(20.0);
+                let h = point(0.6).abs();
+                Aabb::new((c - h).into(), (c + h).into())
+            })
+            .collect();
+        let (cwbvh, _) = crate::bvh::build(&boxes);
+        let leaf_boxes: Vec<Aabb> = cwbvh
+            .primitive_indices
+            .iter()
+            .map(|&i| boxes[i as usize])
+            .collect();
+        let bvh = WideBvh::from_cwbvh(&cwbvh, &leaf_boxes);
+        // A primitive's distance: where the ray enters its box (lane 0 of a one-child node).
+        let entry = |test: &RayBoxTest, b: &Aabb, t_max: f32| {
+            let mut node = WideNode::EMPTY;
+            for axis in 0..3 {
+                node.bounds[2 * axis][0] = b.min[axis];
+                node.bounds[2 * axis + 1][0] = b.max[axis];
+            }
+            let (mask, t_near) = node_test(&node, test, f32::INFINITY);
+            (mask & 1 == 1 && t_near[0] < t_max).then_some(t_near[0])
+        };
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let origin = point(30.0);
+            let direction = point(1.0);
+            let t_max = if hits % 2 == 0 { f32::INFINITY } else { 20.0 };
+            let test = RayBoxTest::new(origin, direction);
+            let mut expected: Option<(f32, usize)> = None;
+            for (i, b) in leaf_boxes.iter().enumerate() {
+                if let Some(t) = entry(&test, b, expected.map_or(t_max, |e| e.0)) {
+                    expected = Some((t, i));
+                }
+            }
+            let hit = |i: usize, t: f32| entry(&test, &leaf_boxes[i], t);
+            let blocks = |i: usize| entry(&test, &leaf_boxes[i], t_max).is_some();
+            let t_of = |i: Option<usize>| i.map(|i| entry(&test, &leaf_boxes[i], t_max));
+            let expected_t = expected.map(|e| Some(e.0));
+            assert_eq!(
+                t_of(closest_hit_kernel(&bvh.nodes, &test, t_max, hit, node_test)),
+                expected_t
+            );
+            assert_eq!(t_of(bvh.closest_hit(&test, t_max, hit)), expected_t);
+            assert_eq!(
+                any_hit_kernel(&bvh.nodes, &test, t_max, blocks, node_test),
+                expected.is_some()
+            );
+            assert_eq!(bvh.any_hit(&test, t_max, blocks), expected.is_some());
+            hits += expected.is_some() as usize;
+        }
+        assert!(hits > 200, "only {hits} rays hit");
+    }
+
+    /// The AVX2 node test gives the portable one's answers bit for bit (random boxes, empty
+    /// slots, rays with zero direction components).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_node_test_equals_the_portable_one() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
+        let mut value = || {
+            let u = sampler.next_2d();
+            (u.x - 0.5) * 10.0 * u.y
+        };
+        for round in 0..5000 {
+            let mut node = WideNode::EMPTY;
+            for lane in 0..(round % 9) {
+                for axis in 0..3 {
+                    let (a, b) = (value(), value());
+                    node.bounds[2 * axis][lane] = a.min(b);
+                    node.bounds[2 * axis + 1][lane] = a.max(b);
+                }
+            }
+            let origin = Vec3::new(value(), value(), value());
+            let mut direction = Vec3::new(value(), value(), value());
+            direction[round % 3] = if round % 2 == 0 { 0.0 } else { -0.0 };
+            let test = RayBoxTest::new(origin, direction);
+            let t_max = if round % 4 == 0 {
+                f32::INFINITY
+            } else {
+                value().abs()
+            };
+            let (mask, near) = node_test(&node, &test, t_max);
+            // SAFETY: AVX2 is present (checked above).
+            let (mask_avx2, near_avx2) = unsafe { node_test_avx2(&node, &test, t_max) };
+            assert_eq!(mask, mask_avx2);
+            assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
+        }
+    }
+}
