@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# The statistical tests (docs/testing.md, "Statistical tests and their seed"): every test whose
+# verdict depends on LUMIS_TEST_SEED, i.e. every test that draws from `chi2::test_sampler` or a
+# default `Chi2Test`. Run it under the seeds you want:
+#
+#   LUMIS_TEST_SEED=3 .ci/statistical-tests.sh --locked
+#   for seed in $(seq 0 9); do LUMIS_TEST_SEED=$seed .ci/statistical-tests.sh --locked -q; done
+#
+# Arguments go to every `cargo test`. Each run keeps `--workspace` so that the features, and
+# hence the binaries, are those of `cargo test --workspace`: after the suite, nothing rebuilds.
+# Every group is run even when one fails; the failing groups are named at the end (exit 1).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+# One group per line: cargo's target selection, then `--`, then test-name filters (none: the
+# whole binary, all of whose tests take the seed).
+groups=(
+    "--lib -- chi2:: envmap::tests::compensated study::summary::tests::nominal"
+    "--test sampling"
+    "--test bsdfs"
+    "--test evaluation"
+    "--test glossy_masking"
+    "--test emitters"
+    "--test envmap_bilinear"
+    "--test robustness -- plugin_library"
+    "--test integrators -- same_mean_ every_integrator_gives_the_closed_form_at_one_point"
+)
+failed=()
+for group in "${groups[@]}"; do
+    read -r -a selection <<<"$group"
+    # Options given to the script go before the group's `--`.
+    split=${#selection[@]}
+    for i in "${!selection[@]}"; do [ "${selection[$i]}" = "--" ] && split=$i && break; done
+    if ! cargo test --workspace "$@" "${selection[@]:0:$split}" "${selection[@]:$split}"; then
+        failed+=("$group")
+    fi
+done
+seed=${LUMIS_TEST_SEED:-0}
+if [ ${#failed[@]} -gt 0 ]; then
+    echo "seed $seed: FAILED: $(printf '[%s] ' "${failed[@]}")"
+    exit 1
+fi
+echo "seed $seed: every statistical test passed"
