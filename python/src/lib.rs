@@ -86,6 +86,56 @@ fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
     catch_panic(f).unwrap_or_else(|message| Err(LumisError::new_err(message)))
 }
 
+/// Runs `work` on a thread named `name` while the calling thread waits with the GIL released,
+/// waking every [`SIGNAL_POLL`] to let Python handle signals and to call `tick`. Ctrl-C (any
+/// signal handler that raises) or an exception from `tick` sets the cancel flag `work` is given,
+/// waits for the thread to stop (within a camera sample per render thread) and is returned; a
+/// panic in `work` becomes a `LumisError`.
+fn beside_python<T: Send + 'static>(
+    py: Python<'_>,
+    name: &str,
+    work: impl FnOnce(&AtomicBool) -> T + Send + 'static,
+    mut tick: impl FnMut() -> PyResult<()>,
+) -> PyResult<T> {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let (sender, receiver) = mpsc::channel::<Result<T, String>>();
+    let thread_cancel = cancel.clone();
+    let worker = std::thread::Builder::new()
+        .name(name.into())
+        .spawn(move || {
+            let outcome = catch_panic(|| work(&thread_cancel));
+            // The receiver is gone only if the caller stopped waiting (interrupted).
+            let _ = sender.send(outcome);
+        })
+        .map_err(|e| RenderError::new_err(format!("cannot start the thread `{name}`: {e}")))?;
+    // `detach` needs a shareable receiver; only this thread ever locks it.
+    let receiver = Mutex::new(receiver);
+    let finished = loop {
+        let received = py.detach(|| {
+            receiver
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .recv_timeout(SIGNAL_POLL)
+        });
+        match received {
+            Ok(outcome) => break Ok(outcome),
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                if let Err(raised) = py.check_signals().and_then(|()| tick()) {
+                    break Err(raised);
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                break Ok(Err(format!("the thread `{name}` stopped without a result")));
+            }
+        }
+    };
+    if finished.is_err() {
+        cancel.store(true, Ordering::Relaxed);
+    }
+    let _ = py.detach(|| worker.join());
+    finished?.map_err(LumisError::new_err)
+}
+
 /// `lumis.SceneError` carrying the CLI's message and the file and position as attributes.
 fn scene_error(py: Python<'_>, e: &lumis_core::error::SceneError) -> PyErr {
     let err = SceneError::new_err(e.to_string());
@@ -194,7 +244,6 @@ fn load_dict(
 }
 
 /// What a render thread hands back.
-type Outcome = Result<Result<(Film, RenderStats), String>, String>;
 
 #[pymethods]
 impl Scene {
@@ -241,63 +290,27 @@ impl Scene {
             let mut integrator = scene::load::build_integrator(&spec, &base)
                 .map_err(|e| PluginError::new_err(format!("{}: {e}", self.path.display())))?;
 
-            let cancel = Arc::new(AtomicBool::new(false));
-            let (sender, receiver) = mpsc::channel::<Outcome>();
             let built = self.built.clone();
-            let thread_cancel = cancel.clone();
-            let worker = std::thread::Builder::new()
-                .name("lumis-render".into())
-                .spawn(move || {
-                    let outcome = catch_panic(|| {
-                        let mut scene = built.lock().unwrap_or_else(PoisonError::into_inner);
-                        scene.spp = spp;
-                        scene.seed = seed;
-                        integrator.preprocess(&scene);
-                        lumis_core::render::render_cancellable(
-                            &scene,
-                            integrator.as_ref(),
-                            threads.unwrap_or(0),
-                            &|_| {},
-                            &thread_cancel,
-                        )
-                        .map_err(|e| format!("cannot start the render threads: {e}"))
-                    });
-                    // The receiver is gone only if the caller stopped waiting (interrupted).
-                    let _ = sender.send(outcome);
-                })
-                .map_err(|e| {
-                    RenderError::new_err(format!("cannot start the render thread: {e}"))
-                })?;
-
-            // `detach` needs a shareable receiver; only this thread ever locks it.
-            let receiver = Mutex::new(receiver);
-            let outcome = loop {
-                let received = py.detach(|| {
-                    receiver
-                        .lock()
-                        .unwrap_or_else(PoisonError::into_inner)
-                        .recv_timeout(SIGNAL_POLL)
-                });
-                match received {
-                    Ok(outcome) => break outcome,
-                    Err(mpsc::RecvTimeoutError::Timeout) => {
-                        if let Err(interrupt) = py.check_signals() {
-                            // Ctrl-C (or any signal handler that raised): stop the render within
-                            // a camera sample per thread, discard it and re-raise.
-                            cancel.store(true, Ordering::Relaxed);
-                            let _ = py.detach(|| worker.join());
-                            return Err(interrupt);
-                        }
-                    }
-                    Err(mpsc::RecvTimeoutError::Disconnected) => {
-                        break Err("the render thread stopped without a result".into());
-                    }
-                }
-            };
-            let _ = py.detach(|| worker.join());
-            let (film, stats) = outcome
-                .map_err(LumisError::new_err)?
-                .map_err(RenderError::new_err)?;
+            let (film, stats) = beside_python(
+                py,
+                "lumis-render",
+                move |cancel| {
+                    let mut scene = built.lock().unwrap_or_else(PoisonError::into_inner);
+                    scene.spp = spp;
+                    scene.seed = seed;
+                    integrator.preprocess(&scene);
+                    lumis_core::render::render_cancellable(
+                        &scene,
+                        integrator.as_ref(),
+                        threads.unwrap_or(0),
+                        &|_| {},
+                        cancel,
+                    )
+                    .map_err(|e| format!("cannot start the render threads: {e}"))
+                },
+                || Ok(()),
+            )?
+            .map_err(RenderError::new_err)?;
             RenderResult::new(py, self, film, stats, spec, spp, seed)
         })
     }

@@ -1,12 +1,12 @@
 //! `lumis.study`: the CLI's `lumis study` run from Python, returning its tables as values.
 //!
-//! The study runs on a Rust thread with the GIL released, exactly as `lumis study` runs (same
-//! configuration, same output directory and files); the calling thread polls for Python signals
-//! (Ctrl-C stops the study at the next camera sample) and reports progress. The tables are
+//! The study runs on a Rust thread with the GIL released ([`crate::beside_python`]), exactly as
+//! `lumis study` runs (same configuration, same output directory and files); the calling thread
+//! handles Python signals (Ctrl-C stops the study at the next camera sample) and reports progress. The tables are
 //! [`report::results_table`] and [`report::trade_table`], the ones `results.csv` and
 //! `trade.csv` print, so the returned values and the files cannot disagree.
 
-use crate::{LumisError, SIGNAL_POLL, catch_panic, convert, scene_error};
+use crate::{LumisError, beside_python, convert, scene_error};
 use lumis::study::report::{self, Field, Table};
 use lumis::study::{
     Interrupted, Progress, ReferenceSource, SceneAnalysis, StudyConfig, Sweeps, config,
@@ -15,8 +15,6 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, PoisonError, mpsc};
 
 /// A comma-separated string or a sequence of strings (`"balance,alpha"` or `["balance", "alpha"]`).
 fn list_text(object: &Bound<'_, PyAny>, name: &str) -> PyResult<String> {
@@ -139,9 +137,7 @@ pub fn study<'py>(
     })
 }
 
-type Outcome = Result<anyhow::Result<Vec<SceneAnalysis>>, String>;
-
-/// Runs the study on its own thread, polling for signals and reporting progress meanwhile.
+/// Runs the study on its own thread, reporting progress meanwhile.
 fn run(
     py: Python<'_>,
     config: StudyConfig,
@@ -153,64 +149,30 @@ fn run(
         bar: bar.clone(),
         lines: false,
     };
-    let cancel = Arc::new(AtomicBool::new(false));
-    let (sender, receiver) = mpsc::channel::<Outcome>();
-    let thread_cancel = cancel.clone();
-    let worker = std::thread::Builder::new()
-        .name("lumis-study".into())
-        .spawn(move || {
-            let outcome = catch_panic(|| lumis::study::run(&config, &progress, &thread_cancel));
-            // The receiver is gone only if the caller stopped waiting (interrupted).
-            let _ = sender.send(outcome);
-        })
-        .map_err(|e| LumisError::new_err(format!("cannot start the study thread: {e}")))?;
-
-    let receiver = Mutex::new(receiver);
     let mut reported = None;
-    // Ok: the study's outcome; Err: a Python exception (Ctrl-C, or raised by `callback`) that
-    // stops the study.
-    let finished: Result<Outcome, PyErr> = loop {
-        let received = py.detach(|| {
-            receiver
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .recv_timeout(SIGNAL_POLL)
-        });
-        match received {
-            Ok(outcome) => break Ok(outcome),
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                if let Err(interrupt) = py.check_signals() {
-                    break Err(interrupt);
-                }
-                if let Some(callback) = callback {
-                    let now = (bar.position(), bar.length().unwrap_or(0), bar.message());
-                    if reported.as_ref() != Some(&now) {
-                        if let Err(raised) = callback.call1(now.clone()) {
-                            break Err(raised);
-                        }
-                        reported = Some(now);
-                    }
-                }
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                break Ok(Err("the study thread stopped without a result".into()));
-            }
-        }
-    };
-    if finished.is_err() {
-        cancel.store(true, Ordering::Relaxed);
-    }
-    let _ = py.detach(|| worker.join());
-    let outcome = finished?;
-    // The last state too, so that a finished study always reports done == total.
-    if let (Some(callback), Ok(Ok(_))) = (callback, &outcome) {
+    let mut report = || -> PyResult<()> {
+        let Some(callback) = callback else {
+            return Ok(());
+        };
         let now = (bar.position(), bar.length().unwrap_or(0), bar.message());
         if reported.as_ref() != Some(&now) {
-            callback.call1(now)?;
+            callback.call1(now.clone())?;
+            reported = Some(now);
         }
-    }
-    match outcome.map_err(LumisError::new_err)? {
-        Ok(analyses) => Ok(analyses),
+        Ok(())
+    };
+    let outcome = beside_python(
+        py,
+        "lumis-study",
+        move |cancel| lumis::study::run(&config, &progress, cancel),
+        &mut report,
+    )?;
+    match outcome {
+        Ok(analyses) => {
+            // The last state too, so that a finished study always reports done == total.
+            report()?;
+            Ok(analyses)
+        }
         Err(e) if e.downcast_ref::<Interrupted>().is_some() => {
             Err(PyKeyboardInterrupt::new_err(e.to_string()))
         }
