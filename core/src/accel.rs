@@ -447,22 +447,8 @@ impl Geometry {
         let boxes: Vec<Aabb> = prims.iter().map(Boundable::aabb).collect();
         let total = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
         let scale = bvh_scale(&total);
-        let scaled: Vec<Aabb> = boxes
-            .iter()
-            .map(|b| Aabb::new(b.min * scale, b.max * scale))
-            .collect();
-        let (cwbvh, _) = crate::bvh::build(&scaled);
-        let leaf_boxes: Vec<Aabb> = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| boxes[i as usize])
-            .collect();
-        let bvh = WideBvh::from_cwbvh(&cwbvh, &leaf_boxes);
-        let primitives = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| prims[i as usize])
-            .collect();
+        let (bvh, order) = WideBvh::build(&boxes, scale);
+        let primitives = order.iter().map(|&i| prims[i as usize]).collect();
         Geometry {
             shapes,
             primitives,

@@ -66,9 +66,29 @@ pub struct WideBvh {
 }
 
 impl WideBvh {
+    /// Builds the tree over `boxes` (obvhs builds it on the boxes × `scale`, a power of two that
+    /// keeps obvhs' arithmetic in range; the nodes keep the exact unscaled boxes). Returns the
+    /// tree and the primitives' leaf order: leaf slot `j` holds primitive `order[j]`.
+    pub fn build(boxes: &[Aabb], scale: f32) -> (Self, Vec<u32>) {
+        let scaled: Vec<Aabb> = boxes
+            .iter()
+            .map(|b| Aabb::new(b.min * scale, b.max * scale))
+            .collect();
+        let (cwbvh, _) = crate::bvh::build(&scaled);
+        let leaf_boxes: Vec<Aabb> = cwbvh
+            .primitive_indices
+            .iter()
+            .map(|&i| boxes[i as usize])
+            .collect();
+        (
+            Self::from_cwbvh(&cwbvh, &leaf_boxes),
+            cwbvh.primitive_indices,
+        )
+    }
+
     /// The tree of `bvh` with exact boxes: `leaf_boxes[i]` bounds the `i`-th primitive in leaf
     /// order (in the space rays are given in, which need not be the space `bvh` was built in).
-    pub fn from_cwbvh(bvh: &CwBvh, leaf_boxes: &[Aabb]) -> Self {
+    fn from_cwbvh(bvh: &CwBvh, leaf_boxes: &[Aabb]) -> Self {
         let mut nodes = vec![WideNode::EMPTY; bvh.nodes.len()];
         if !nodes.is_empty() {
             fill(bvh, 0, leaf_boxes, &mut nodes);
@@ -439,13 +459,8 @@ mod tests {
                 Aabb::new((c - h).into(), (c + h).into())
             })
             .collect();
-        let (cwbvh, _) = crate::bvh::build(&boxes);
-        let leaf_boxes: Vec<Aabb> = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| boxes[i as usize])
-            .collect();
-        let bvh = WideBvh::from_cwbvh(&cwbvh, &leaf_boxes);
+        let (bvh, order) = WideBvh::build(&boxes, 1.0);
+        let leaf_boxes: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
         // A primitive's distance: where the ray enters its box (lane 0 of a one-child node).
         let entry = |test: &RayBoxTest, b: &Aabb, t_max: f32| {
             let mut node = WideNode::EMPTY;

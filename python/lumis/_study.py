@@ -47,6 +47,10 @@ class Study:
         return pandas.DataFrame.from_records(getattr(self, table))
 
 
+def _path(path: Optional[StrPath]) -> Optional[str]:
+    return None if path is None else os.fspath(path)
+
+
 def study(
     scenes: Union[StrPath, Sequence[StrPath]],
     out: StrPath = "study",
@@ -95,9 +99,9 @@ def study(
         runs=runs,
         max_runs=max_runs,
         precision=precision,
-        reference=None if reference is None else os.fspath(reference),
+        reference=_path(reference),
         reference_samples=reference_samples,
-        cache_dir=None if cache_dir is None else os.fspath(cache_dir),
+        cache_dir=_path(cache_dir),
         paper_pilots=paper_pilots,
         sweeps=sweeps,
         sweep_budget=sweep_budget,
@@ -106,8 +110,8 @@ def study(
         overrides=overrides,
         threads=threads,
         seed=seed,
-        report=None if report is None else os.fspath(report),
-        notes=None if notes is None else os.fspath(notes),
+        report=_path(report),
+        notes=_path(notes),
         progress=progress,
     )
     return Study(

@@ -20,7 +20,6 @@ fn square_light() -> (Arc<dyn Emitter>, Geometry) {
 /// An `area` light with `params` on the 2 × 2 square in the plane y = 0, whose front faces −y
 /// (the rectangle faces +z and is turned by 90° about x).
 fn light_on_square(params: &str) -> (Arc<dyn Emitter>, Geometry) {
-    lumis_emitters::link();
     let m = shapes::transform_matrix(&TransformDescription {
         rotate: vec![RotationDescription {
             axis: [1.0, 0.0, 0.0],
@@ -30,17 +29,16 @@ fn light_on_square(params: &str) -> (Arc<dyn Emitter>, Geometry) {
     })
     .unwrap();
     let shape = ShapeGeometry::Mesh(shapes::rectangle().transformed(&m));
+    (area_light(&shape, params), Geometry::new(vec![shape]))
+}
+
+/// An `area` light on `shape` with `params` (RON fields without their braces).
+fn area_light(shape: &ShapeGeometry, params: &str) -> Arc<dyn Emitter> {
+    lumis_emitters::link();
     let plugin = registry::find::<EmitterPlugin>("area").unwrap();
     let values = ron::from_str(&format!("{{{params}}}")).unwrap();
     let mut params = Params::new("area", plugin.params, values).unwrap();
-    let light = (plugin.create)(
-        &mut params,
-        &EmitterContext {
-            shape: Some(&shape),
-        },
-    )
-    .unwrap();
-    (light, Geometry::new(vec![shape]))
+    (plugin.create)(&mut params, &EmitterContext { shape: Some(shape) }).unwrap()
 }
 
 /// Reference points: near, far, grazing (as in the chi-square test), and others around.
@@ -190,21 +188,7 @@ fn one_sided_lights_emit_from_their_front_only() {
         center: Vec3::ZERO,
         radius: 1.0,
     });
-    lumis_emitters::link();
-    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
-    let mut params = Params::new(
-        "area",
-        plugin.params,
-        ron::from_str("{\"radiance\": 3}").unwrap(),
-    )
-    .unwrap();
-    let light = (plugin.create)(
-        &mut params,
-        &EmitterContext {
-            shape: Some(&sphere),
-        },
-    )
-    .unwrap();
+    let light = area_light(&sphere, "\"radiance\": 3");
     let inside = ReferencePoint {
         position: Vec3::new(0.2, -0.3, 0.1),
     };
@@ -248,22 +232,12 @@ fn edge_on_hits_have_zero_density() {
 /// (used above sin²θmax = 1e-3) amplifies by its cancellation, 1 / sin²θmax.
 #[test]
 fn sphere_light_density_is_that_of_its_cone() {
-    lumis_emitters::link();
     let radius = 0.5f32;
     let sphere = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
         center: Vec3::new(1.0, 2.0, -1.0),
         radius,
     });
-    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
-    let values = ron::from_str("{\"radiance\": 1}").unwrap();
-    let mut params = Params::new("area", plugin.params, values).unwrap();
-    let light = (plugin.create)(
-        &mut params,
-        &EmitterContext {
-            shape: Some(&sphere),
-        },
-    )
-    .unwrap();
+    let light = area_light(&sphere, "\"radiance\": 1");
     for sin2_max in [0.9f64, 0.25, 0.01, 2e-3, 9e-4, 5e-4, 1e-5] {
         let distance = radius as f64 / sin2_max.sqrt();
         let from =
@@ -312,25 +286,11 @@ fn degenerate_configurations_give_no_sample() {
             );
         }
     }
-    lumis_emitters::link();
     let speck = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
         center: Vec3::ZERO,
         radius: 1e-20,
     });
-    let plugin = registry::find::<EmitterPlugin>("area").unwrap();
-    let mut params = Params::new(
-        "area",
-        plugin.params,
-        ron::from_str("{\"radiance\": 1}").unwrap(),
-    )
-    .unwrap();
-    let light = (plugin.create)(
-        &mut params,
-        &EmitterContext {
-            shape: Some(&speck),
-        },
-    )
-    .unwrap();
+    let light = area_light(&speck, "\"radiance\": 1");
     let reference = ReferencePoint {
         position: Vec3::new(0.0, 0.0, 1e3),
     };
