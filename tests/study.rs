@@ -244,6 +244,10 @@ fn reduced_study_has_curves_trade_and_intervals_on_every_ratio_and_writes_only_i
             assert_eq!(number(t, "speedup"), 1.0, "{what}");
             assert_eq!(t["speedup_extent"], "within", "{what}");
         }
+        // The headline α against itself: the same curve read twice.
+        if t["integrator"] == "alpha" && !t["speedup_over_headline"].is_empty() {
+            assert_eq!(number(t, "speedup_over_headline"), 1.0, "{what}");
+        }
         if !t["speedup"].is_empty() {
             let (v, lo, hi) = (
                 number(t, "speedup"),
@@ -262,6 +266,8 @@ fn reduced_study_has_curves_trade_and_intervals_on_every_ratio_and_writes_only_i
     // The report links into the output directory, relative to itself, and carries the notes.
     let md = std::fs::read_to_string(&report).expect("the report");
     assert!(md.contains("## Summary: the trade against the balance heuristic"));
+    assert!(md.contains("Speed-up over `alpha` at equal error"));
+    assert!(md.contains("| integrator | median speed-up over balance |"));
     assert!(md.contains("A reading of the results, by hand."));
     for scene in SCENES.map(name) {
         assert!(md.contains(&format!("## {scene} — ")), "{scene} section");

@@ -87,6 +87,23 @@ pub enum Extent {
     },
 }
 
+impl Extent {
+    /// The less reliable of two extents (a value read off two curves is as far out as the
+    /// farther of its two readings).
+    fn farther(self, other: Extent) -> Extent {
+        let rank = |e: Extent| match e {
+            Extent::Within => 0,
+            Extent::Extrapolated => 1,
+            Extent::Beyond { .. } => 2,
+        };
+        if rank(other) > rank(self) {
+            other
+        } else {
+            self
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Reading {
     pub estimate: Estimate,
@@ -102,6 +119,8 @@ pub struct Trade {
     pub time_to_target: Option<Reading>,
     /// The balance heuristic's time to the target over this integrator's: > 1 is faster.
     pub speedup: Option<Reading>,
+    /// The headline α's time to the same target over this integrator's: > 1 is faster than α.
+    pub speedup_over_headline: Option<Reading>,
     /// This integrator's relative variance at the balance heuristic's target-budget time,
     /// over balance's there: < 1 is better at equal time.
     pub equal_time_ratio: Option<Reading>,
@@ -374,6 +393,7 @@ impl Collector {
                     &choice.label,
                     &curve_stats[i],
                     &curve_stats[plan.balance],
+                    plan.headline.map(|h| curve_stats[h].as_slice()),
                     target_error,
                     target_time,
                 )
@@ -583,20 +603,23 @@ impl Collector {
 
 /// Reads one integrator's curve against the balance heuristic's: time to the target error,
 /// speed-up there, and the error ratio at the target time, each a function of both curves'
-/// statistics (so their intervals carry the noise of both).
+/// statistics (so their intervals carry the noise of both); and the speed-up over the headline
+/// α's curve at the same target, from all three.
 fn trade(
     integrator: usize,
     label: &str,
     curve: &[&ConfigurationStats],
     balance: &[&ConfigurationStats],
+    headline: Option<&[&ConfigurationStats]>,
     target_error: f64,
     target_time: f64,
 ) -> Trade {
     let n = curve.len();
-    // Inputs: ln t and ln e at each budget, this curve's, then balance's.
+    // Inputs: ln t and ln e at each budget, this curve's, then balance's, then the headline's.
     let logs: Vec<Jack> = curve
         .iter()
         .chain(balance)
+        .chain(headline.unwrap_or_default())
         .flat_map(|s| [s.cpu_time.map(f64::ln), s.relative_variance.map(f64::ln)])
         .collect();
     let inputs: Vec<&Jack> = logs.iter().collect();
@@ -617,7 +640,7 @@ fn trade(
     };
     let values: Vec<f64> = logs.iter().map(|j| j.value).collect();
     let (first, last) = (values[0], values[2 * (n - 1)]);
-    let extent = |log_time: f64| {
+    let extent = |log_time: f64| -> Extent {
         let margin = std::f64::consts::LN_2;
         if log_time < first - margin {
             Extent::Beyond { above: false }
@@ -637,11 +660,29 @@ fn trade(
     };
     let own = time_at(&values, 0);
     let has_target = error_at(&values, 0);
+    // Over the headline: read where both curves reach the target, as far out as the farther.
+    let headline_time = if headline.is_some() {
+        time_at(&values, 2)
+    } else {
+        f64::NAN
+    };
+    let speedup_over_headline = match extent(headline_time) {
+        // Where α's own time is only a bound, so is the ratio: none is given.
+        Extent::Beyond { .. } => None,
+        _ if !headline_time.is_finite() => None,
+        headline_extent => {
+            reading(own, &|v| (time_at(v, 2) - time_at(v, 0)).exp()).map(|r| Reading {
+                extent: r.extent.farther(headline_extent),
+                ..r
+            })
+        }
+    };
     Trade {
         integrator,
         label: label.to_string(),
         time_to_target: reading(own, &|v| time_at(v, 0).exp()),
         speedup: reading(own, &|v| (time_at(v, 1) - time_at(v, 0)).exp()),
+        speedup_over_headline,
         equal_time_ratio: if has_target.is_finite() {
             reading(ln_time, &|v| (error_at(v, 0) - error_at(v, 1)).exp())
         } else {

@@ -3,7 +3,7 @@
 //! error, speed-up over balance, error ratio at equal time) and `results.md`. All are rewritten
 //! atomically after every finished scene.
 
-use super::collect::{Extent, Reading, Row, SceneAnalysis};
+use super::collect::{Extent, Reading, Row, SceneAnalysis, Trade};
 use super::config::StudyConfig;
 use super::plan::Sweep;
 use super::stats::Estimate;
@@ -298,7 +298,12 @@ pub fn trade_table(scenes: &[SceneAnalysis]) -> Table {
     ]
     .map(String::from)
     .to_vec();
-    for name in ["time_to_target", "speedup", "equal_time_ratio"] {
+    for name in [
+        "time_to_target",
+        "speedup",
+        "equal_time_ratio",
+        "speedup_over_headline",
+    ] {
         columns.extend(estimate_columns(name));
         columns.push(format!("{name}_extent"));
     }
@@ -313,7 +318,12 @@ pub fn trade_table(scenes: &[SceneAnalysis]) -> Table {
                 Field::Number(s.target_error),
                 Field::Number(s.target_time),
             ];
-            for r in [&t.time_to_target, &t.speedup, &t.equal_time_ratio] {
+            for r in [
+                &t.time_to_target,
+                &t.speedup,
+                &t.equal_time_ratio,
+                &t.speedup_over_headline,
+            ] {
                 record.extend(estimate_fields(r.as_ref().map(|r| &r.estimate)));
                 record.push(match r.map(|r| r.extent) {
                     None => Field::Missing,
@@ -500,34 +510,26 @@ fn summary(
         }
         writeln!(md)?;
     }
-    // Every integrator's speed-up, scene by scene.
+    // Every integrator's speed-up, scene by scene, over balance and over the headline α.
     let labels: Vec<&str> = config
         .integrators
         .iter()
         .map(|c| c.label.as_str())
         .collect();
-    let mut columns = vec!["scene".to_string()];
-    columns.extend(labels.iter().map(|l| format!("`{l}`")));
-    let columns: Vec<&str> = columns.iter().map(String::as_str).collect();
     writeln!(
         md,
         "Speed-up over balance at equal error, every integrator:\n"
     )?;
-    table_head(md, &columns)?;
-    for s in scenes {
-        let mut cells = vec![s.name.clone()];
-        for t in &s.trade {
-            cells.push(reading(&t.speedup, |above| {
-                if above {
-                    "< bound".into()
-                } else {
-                    "> bound".into()
-                }
-            }));
-        }
-        table_row(md, &cells)?;
+    speedup_table(md, scenes, &labels, |t| &t.speedup)?;
+    if let Some(h) = &headline {
+        writeln!(
+            md,
+            "Speed-up over `{h}` at equal error (the same target error: balance's at the target \
+             budget), every integrator:\n"
+        )?;
+        speedup_table(md, scenes, &labels, |t| &t.speedup_over_headline)?;
     }
-    writeln!(md)?;
+    across_scenes(md, scenes, &labels, headline.as_deref())?;
     figure(
         md,
         config,
@@ -535,6 +537,135 @@ fn summary(
         "plots/summary.png",
         "Speed-up over the balance heuristic at equal error, per scene and integrator, with 95 % intervals (log scale; right of 1 is faster)",
     )
+}
+
+/// One row per scene, one column per integrator: the speed-up that `pick` reads.
+fn speedup_table(
+    md: &mut String,
+    scenes: &[SceneAnalysis],
+    labels: &[&str],
+    pick: fn(&Trade) -> &Option<Reading>,
+) -> Result<()> {
+    let mut columns = vec!["scene".to_string()];
+    columns.extend(labels.iter().map(|l| format!("`{l}`")));
+    let columns: Vec<&str> = columns.iter().map(String::as_str).collect();
+    table_head(md, &columns)?;
+    for s in scenes {
+        let mut cells = vec![s.name.clone()];
+        cells.extend(s.trade.iter().map(|t| {
+            reading(pick(t), |above| {
+                if above {
+                    "< bound".into()
+                } else {
+                    "> bound".into()
+                }
+            })
+        }));
+        table_row(md, &cells)?;
+    }
+    writeln!(md)?;
+    Ok(())
+}
+
+/// How a speed-up's 95 % interval places it against 1.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Faster,
+    NotSignificant,
+    Slower,
+}
+
+fn side(r: &Reading) -> Side {
+    match r.extent {
+        // Beyond the ladder by more than a factor 2 in time: the bound decides.
+        Extent::Beyond { above } => {
+            if above {
+                Side::Slower
+            } else {
+                Side::Faster
+            }
+        }
+        Extent::Within | Extent::Extrapolated => {
+            if r.estimate.lo > 1.0 {
+                Side::Faster
+            } else if r.estimate.hi < 1.0 {
+                Side::Slower
+            } else {
+                Side::NotSignificant
+            }
+        }
+    }
+}
+
+/// The median of the point estimates and the count of scenes on each side of 1.
+fn tally(readings: &[Reading]) -> [String; 2] {
+    let mut values: Vec<f64> = readings
+        .iter()
+        .filter(|r| matches!(r.extent, Extent::Within | Extent::Extrapolated))
+        .map(|r| r.estimate.value)
+        .collect();
+    values.sort_by(f64::total_cmp);
+    let median = match values.len() {
+        0 => "–".to_string(),
+        n if n % 2 == 1 => sig(values[n / 2]),
+        n => sig((values[n / 2 - 1] * values[n / 2]).sqrt()),
+    };
+    let count = |which| readings.iter().filter(|r| side(r) == which).count();
+    [
+        median,
+        format!(
+            "{} / {} / {}",
+            count(Side::Faster),
+            count(Side::NotSignificant),
+            count(Side::Slower)
+        ),
+    ]
+}
+
+/// Per integrator, across the scenes: the median speed-up over balance (and over the headline
+/// α) and on how many scenes it is faster, not significantly different, or slower (95 %).
+fn across_scenes(
+    md: &mut String,
+    scenes: &[SceneAnalysis],
+    labels: &[&str],
+    headline: Option<&str>,
+) -> Result<()> {
+    writeln!(
+        md,
+        "Across the {} scenes: the median of the per-scene speed-ups at equal error (point \
+         estimates, read within the ladder or extrapolated; a geometric mean of the middle two \
+         for an even count), and the number of scenes where the 95 % interval lies above 1 \
+         (faster) / contains 1 (not significant) / lies below 1 (slower); a speed-up beyond the \
+         ladder by more than a factor 2 in time counts on its side.\n",
+        scenes.len()
+    )?;
+    let mut columns = vec![
+        "integrator".to_string(),
+        "median speed-up over balance".to_string(),
+        "faster / n.s. / slower than balance".to_string(),
+    ];
+    if let Some(h) = headline {
+        columns.push(format!("median speed-up over `{h}`"));
+        columns.push(format!("faster / n.s. / slower than `{h}`"));
+    }
+    let columns: Vec<&str> = columns.iter().map(String::as_str).collect();
+    table_head(md, &columns)?;
+    for (i, label) in labels.iter().enumerate() {
+        let of = |pick: fn(&Trade) -> &Option<Reading>| -> Vec<Reading> {
+            scenes
+                .iter()
+                .filter_map(|s| s.trade.get(i).and_then(|t| *pick(t)))
+                .collect()
+        };
+        let mut cells = vec![format!("`{label}`")];
+        cells.extend(tally(&of(|t| &t.speedup)));
+        if headline.is_some() {
+            cells.extend(tally(&of(|t| &t.speedup_over_headline)));
+        }
+        table_row(md, &cells)?;
+    }
+    writeln!(md)?;
+    Ok(())
 }
 
 fn sweeps(
