@@ -639,8 +639,9 @@ fn trade(
         log_or_nan(reach(&swapped, ln_time))
     };
     let values: Vec<f64> = logs.iter().map(|j| j.value).collect();
-    let (first, last) = (values[0], values[2 * (n - 1)]);
-    let extent = |log_time: f64| -> Extent {
+    // Where `log_time` lies against the measured times of curve `which`.
+    let extent = |which: usize, log_time: f64| -> Extent {
+        let (first, last) = (values[2 * which * n], values[2 * (which * n + n - 1)]);
         let margin = std::f64::consts::LN_2;
         if log_time < first - margin {
             Extent::Beyond { above: false }
@@ -655,7 +656,7 @@ fn trade(
     let reading = |log_time: f64, f: &dyn Fn(&[f64]) -> f64| {
         log_time.is_finite().then(|| Reading {
             estimate: Jack::combine(&inputs, f).log_interval(),
-            extent: extent(log_time),
+            extent: extent(0, log_time),
         })
     };
     let own = time_at(&values, 0);
@@ -666,7 +667,7 @@ fn trade(
     } else {
         f64::NAN
     };
-    let speedup_over_headline = match extent(headline_time) {
+    let speedup_over_headline = match extent(2, headline_time) {
         // Where α's own time is only a bound, so is the ratio: none is given.
         Extent::Beyond { .. } => None,
         _ if !headline_time.is_finite() => None,

@@ -607,8 +607,8 @@ fn tally(readings: &[Reading]) -> [String; 2] {
     values.sort_by(f64::total_cmp);
     let median = match values.len() {
         0 => "–".to_string(),
-        n if n % 2 == 1 => sig(values[n / 2]),
-        n => sig((values[n / 2 - 1] * values[n / 2]).sqrt()),
+        n if n % 2 == 1 => short(values[n / 2]),
+        n => short((values[n / 2 - 1] * values[n / 2]).sqrt()),
     };
     let count = |which| readings.iter().filter(|r| side(r) == which).count();
     [
