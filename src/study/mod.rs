@@ -45,6 +45,7 @@ use anyhow::{Context as _, Result};
 use collect::Collector;
 pub use collect::SceneAnalysis;
 use indicatif::ProgressBar;
+use lumis_core::output::Window;
 use lumis_core::scene::load::load_scene;
 use plan::{Cell, ScenePlan, plan_scene};
 use std::path::{Path, PathBuf};
@@ -157,15 +158,7 @@ fn study_scene(
     let reference = match &config.reference {
         ReferenceSource::File(file) => reference::read_file(file, window)?,
         ReferenceSource::Samples(_) => {
-            let reference_plan = plan.reference.as_ref().context("a rendered reference")?;
-            let entry = reference::cache_entry(
-                &config.cache_dir(),
-                &plan.path,
-                &name,
-                window,
-                &config.overrides,
-                reference_plan,
-            )?;
+            let (reference_plan, entry) = reference_cache_entry(config, &plan, window)?;
             let cells = plan.reference_cells();
             let cost: u64 = cells.iter().map(|c| plan.cost(c)).sum();
             match reference::cached(&entry, window, reference_plan) {
@@ -497,15 +490,7 @@ pub fn collect(
         let reference = match &config.reference {
             ReferenceSource::File(file) => reference::read_file(file, window)?,
             ReferenceSource::Samples(_) => {
-                let reference_plan = plan.reference.as_ref().context("a rendered reference")?;
-                let entry = reference::cache_entry(
-                    &config.cache_dir(),
-                    &plan.path,
-                    &plan.name,
-                    window,
-                    &config.overrides,
-                    reference_plan,
-                )?;
+                let (reference_plan, entry) = reference_cache_entry(config, &plan, window)?;
                 let results = indices
                     .clone()
                     .take(shards)
@@ -522,6 +507,24 @@ pub fn collect(
     }
     write_study(config, &finished)?;
     Ok(finished)
+}
+
+/// A scene's rendered reference: its plan and where the study caches it.
+fn reference_cache_entry<'a>(
+    config: &StudyConfig,
+    plan: &'a ScenePlan,
+    window: Window,
+) -> Result<(&'a plan::ReferencePlan, reference::CacheEntry)> {
+    let reference_plan = plan.reference.as_ref().context("a rendered reference")?;
+    let entry = reference::cache_entry(
+        &config.cache_dir(),
+        &plan.path,
+        &plan.name,
+        window,
+        &config.overrides,
+        reference_plan,
+    )?;
+    Ok((reference_plan, entry))
 }
 
 /// The outputs of one finished scene: its plots and panel.
