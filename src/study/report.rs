@@ -597,18 +597,28 @@ fn side(r: &Reading) -> Side {
     }
 }
 
-/// The median of the point estimates and the count of scenes on each side of 1.
+/// The median of the point estimates and the count of scenes on each side of 1. A speed-up
+/// known only as a bound beyond the ladder ranks as 0 (slower) or ∞ (faster): if the median
+/// falls on one, only its bound is given.
 fn tally(readings: &[Reading]) -> [String; 2] {
     let mut values: Vec<f64> = readings
         .iter()
-        .filter(|r| matches!(r.extent, Extent::Within | Extent::Extrapolated))
-        .map(|r| r.estimate.value)
+        .map(|r| match r.extent {
+            Extent::Beyond { above: true } => 0.0,
+            Extent::Beyond { above: false } => f64::INFINITY,
+            Extent::Within | Extent::Extrapolated => r.estimate.value,
+        })
         .collect();
     values.sort_by(f64::total_cmp);
+    let shown = |v: f64| match v {
+        0.0 => "< bound".to_string(),
+        f64::INFINITY => "> bound".to_string(),
+        v => short(v),
+    };
     let median = match values.len() {
         0 => "–".to_string(),
-        n if n % 2 == 1 => short(values[n / 2]),
-        n => short((values[n / 2 - 1] * values[n / 2]).sqrt()),
+        n if n % 2 == 1 => shown(values[n / 2]),
+        n => shown((values[n / 2 - 1] * values[n / 2]).sqrt()),
     };
     let count = |which| readings.iter().filter(|r| side(r) == which).count();
     [
@@ -633,10 +643,10 @@ fn across_scenes(
     writeln!(
         md,
         "Across the {} scenes: the median of the per-scene speed-ups at equal error (point \
-         estimates, read within the ladder or extrapolated; a geometric mean of the middle two \
-         for an even count), and the number of scenes where the 95 % interval lies above 1 \
-         (faster) / contains 1 (not significant) / lies below 1 (slower); a speed-up beyond the \
-         ladder by more than a factor 2 in time counts on its side.\n",
+         estimates; a geometric mean of the middle two for an even count), and the number of \
+         scenes where the 95 % interval lies above 1 (faster) / contains 1 (not significant) / \
+         lies below 1 (slower). A speed-up known only as a bound (its time more than a factor 2 \
+         beyond the ladder's) counts on the side of its bound and ranks there in the median.\n",
         scenes.len()
     )?;
     let mut columns = vec![
