@@ -169,79 +169,6 @@ fn ray_queries(c: &mut Criterion) {
     group.finish();
 }
 
-/// Shadow rays as direct lighting traces them: from each point where a camera ray meets the
-/// dragon, 8 rays toward one light, traced one by one (`Geometry::occluded`) or as one packet
-/// (`Geometry::occluded_packet`). Lights: a square above the dragon, a quarter of its size
-/// (coherent packets), and the sky (rays to infinity over the upper hemisphere: incoherent).
-fn shadow_packets(c: &mut Criterion) {
-    let mesh = load_mesh(&repo("scenes/meshes/dragon_res3.glb"));
-    let [(_, camera_rays), _] = ray_sets(&mesh);
-    let (lo, hi) = mesh.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let (center, extent) = ((lo + hi) * 0.5, hi - lo);
-    let geometry = Geometry::new(vec![ShapeGeometry::Mesh(mesh)]);
-    let hits: Vec<_> = camera_rays
-        .iter()
-        .filter_map(|r| geometry.intersect(r))
-        .collect();
-    let mut sampler = Sampler::new(3, 0, 0);
-    let light_center = center + Vec3::new(0.0, extent.y, 0.0);
-    let side = 0.25 * extent.max_element();
-    let mut packets = |light: &str| -> Vec<[Ray; 8]> {
-        hits.iter()
-            .map(|hit| {
-                std::array::from_fn(|_| {
-                    let u = sampler.next_2d();
-                    if light == "area_light" {
-                        let target = light_center + side * Vec3::new(u.x - 0.5, 0.0, u.y - 0.5);
-                        hit.spawn_ray_to(target)
-                    } else {
-                        let phi = std::f32::consts::TAU * u.x;
-                        let (sin_theta, cos_theta) = ((1.0 - u.y * u.y).sqrt(), u.y);
-                        let w = Vec3::new(sin_theta * phi.cos(), cos_theta, sin_theta * phi.sin());
-                        hit.spawn_ray(w)
-                    }
-                })
-            })
-            .collect()
-    };
-    let sets = [
-        ("area_light", packets("area_light")),
-        ("sky", packets("sky")),
-    ];
-    let mut group = c.benchmark_group("shadow_rays_dragon_res3");
-    for (name, packets) in &sets {
-        let blocked: u32 = packets
-            .iter()
-            .map(|p| geometry.occluded_packet(p).count_ones())
-            .sum();
-        let blocked_single = packets.iter().flatten().filter(|r| geometry.occluded(r));
-        assert_eq!(blocked_single.count(), blocked as usize, "{name}");
-        let total = packets.len() * 8;
-        println!("{name}: {blocked} of {total} shadow rays blocked");
-        group.throughput(Throughput::Elements(total as u64));
-        group.bench_function(format!("{name}_single"), |b| {
-            b.iter(|| {
-                for packet in packets {
-                    for ray in packet {
-                        black_box(geometry.occluded(ray));
-                    }
-                }
-            })
-        });
-        group.bench_function(format!("{name}_packet"), |b| {
-            b.iter(|| {
-                for packet in packets {
-                    black_box(geometry.occluded_packet(packet));
-                }
-            })
-        });
-    }
-    group.finish();
-}
-
 /// A BSDF built through the registry, as a scene builds it.
 fn bsdf(spec: &str) -> Arc<dyn Bsdf> {
     lumis::link_plugins();
@@ -421,6 +348,6 @@ criterion_group!(
     config = Criterion::default()
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(2));
-    targets = bvh_build, ray_queries, shadow_packets, bsdfs, envmap, alpha_estimator
+    targets = bvh_build, ray_queries, bsdfs, envmap, alpha_estimator
 );
 criterion_main!(benches);

@@ -9,8 +9,7 @@
 use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use crate::math::{gamma, next_float_down, next_float_up};
 use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal};
-pub use crate::wide_bvh::PACKET_SIZE;
-use crate::wide_bvh::{PacketBoxTest, RayBoxTest, WideBvh, sphere_box};
+use crate::wide_bvh::{RayBoxTest, WideBvh, sphere_box};
 use glam::Vec3;
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
@@ -552,41 +551,6 @@ impl Geometry {
         }
     }
 
-    /// Which of `rays` (at most [`PACKET_SIZE`]) something blocks before their `t_max`, as a bit
-    /// mask (bit `i` for `rays[i]`): [`Geometry::occluded`]'s answers, ray by ray, found in
-    /// one traversal that culls nodes for the whole packet when the rays share their origin
-    /// (shadow rays from one shading point).
-    ///
-    /// # Panics
-    /// If there are more than [`PACKET_SIZE`] rays.
-    pub fn occluded_packet(&self, rays: &[Ray]) -> u32 {
-        assert!(rays.len() <= PACKET_SIZE, "{} rays in a packet", rays.len());
-        RAYS_TRACED.with(|c| c.set(c.get() + rays.len() as u64));
-        if self.primitives.is_empty() || rays.is_empty() {
-            return 0;
-        }
-        let last = rays.len() - 1;
-        let shears: [RayShear; PACKET_SIZE] =
-            std::array::from_fn(|i| RayShear::new(rays[i.min(last)].direction));
-        let tests: [(RayBoxTest, f32); PACKET_SIZE] = std::array::from_fn(|i| {
-            let ray = &rays[i.min(last)];
-            (RayBoxTest::new(ray.origin, ray.direction), ray.t_max)
-        });
-        let packet = PacketBoxTest::new(&tests[..rays.len()]);
-        self.bvh.any_hit_packet(&packet, |lane, slot| {
-            let ray = &rays[lane];
-            match &self.primitives[slot] {
-                Primitive::Triangle { p, .. } => {
-                    intersect_triangle(ray, &shears[lane], ray.t_max, p)
-                        .is_some_and(|(t, _)| t < ray.t_max)
-                }
-                Primitive::Sphere { sphere, .. } => {
-                    intersect_sphere(ray, ray.t_max, sphere).is_some()
-                }
-            }
-        })
-    }
-
     /// Whether anything blocks the ray before `t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
         count_ray();
@@ -708,32 +672,6 @@ mod tests {
                                 hit.position.is_finite() && hit.geometric_normal.is_normalized()
                             );
                         }
-                    }
-                    // Packets (of 1 to 8 rays) answer as their rays one by one, whether the
-                    // rays come from anywhere or share an origin (then culled as a packet):
-                    // shadow rays toward points, or rays to infinity.
-                    let (mut start, mut size) = (0, 1);
-                    while start < rays.len() {
-                        let chunk = &rays[start..rays.len().min(start + size)];
-                        let origin = chunk[0].origin;
-                        let shared: Vec<Ray> = chunk
-                            .iter()
-                            .map(|r| Ray {
-                                origin,
-                                direction: r.origin + 5.0 * r.direction - origin,
-                                t_max: if size % 2 == 0 { 0.9999 } else { f32::INFINITY },
-                            })
-                            .collect();
-                        for packet in [chunk, &shared[..]] {
-                            let expected: u32 = packet
-                                .iter()
-                                .enumerate()
-                                .map(|(lane, r)| (geometry.occluded(r) as u32) << lane)
-                                .sum();
-                            prop_assert_eq!(geometry.occluded_packet(packet), expected);
-                        }
-                        start += size;
-                        size = size % PACKET_SIZE + 1;
                     }
                     Ok(())
                 },

@@ -17,10 +17,6 @@
 //! `(plane − origin) · (1 / direction)`. A ray aimed exactly at the edge of a flat box (an
 //! axis-aligned square light) therefore enters it, where a rounded slab test can miss it.
 
-mod packet;
-
-pub use packet::{PACKET_SIZE, PacketBoxTest};
-
 use crate::math::{gamma, next_float_down, next_float_up};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;

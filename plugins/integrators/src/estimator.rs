@@ -13,7 +13,7 @@
 //! allocation per sample), so that a method weighs and observes them as plain slices.
 
 use glam::Vec3;
-use lumis_core::accel::{Intersection, PACKET_SIZE, Ray};
+use lumis_core::accel::{Intersection, Ray};
 use lumis_core::bsdf::Bsdf;
 use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
@@ -60,17 +60,13 @@ impl<'a> ShadingPoint<'a> {
         self.normal.dot(wi_world) > 0.0
     }
 
-    /// The shadow ray of a light sample: to its point, or to infinity.
-    fn shadow_ray(&self, sample: &EmitterSample) -> Ray {
-        match sample.position {
+    /// Whether the light sample is unoccluded: a shadow ray to its point, or to infinity.
+    fn sees(&self, scene: &Scene, sample: &EmitterSample) -> bool {
+        let ray = match sample.position {
             Some(target) => self.hit.spawn_ray_to(target),
             None => self.hit.spawn_ray(sample.wi),
-        }
-    }
-
-    /// Whether the light sample is unoccluded.
-    fn sees(&self, scene: &Scene, sample: &EmitterSample) -> bool {
-        !scene.occluded(&self.shadow_ray(sample))
+        };
+        !scene.occluded(&ray)
     }
 
     /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there. A
@@ -350,58 +346,31 @@ pub fn draw_light_samples(
     let reference = ReferencePoint {
         position: sp.hit.position,
     };
-    // In packets: up to PACKET_SIZE samples are drawn (in the sampler's order), then their
-    // shadow rays, which share the shading point's origin, are traced as one packet.
-    let mut remaining = count as usize;
-    while remaining > 0 {
-        let batch = remaining.min(PACKET_SIZE);
-        remaining -= batch;
-        let mut drawn = [None; PACKET_SIZE];
-        let mut shadow_rays = [Ray {
-            origin: Vec3::ZERO,
-            direction: Vec3::ZERO,
-            t_max: 0.0,
-        }; PACKET_SIZE];
-        let mut lanes = [0; PACKET_SIZE];
-        let mut traced = 0;
-        for (k, slot) in drawn[..batch].iter_mut().enumerate() {
-            let Some(ls) = emitter.sample_direction(&reference, sampler.next_2d()) else {
-                continue;
+    for _ in 0..count {
+        let Some(ls) = emitter.sample_direction(&reference, sampler.next_2d()) else {
+            records.push(SampleRecord::default());
+            continue;
+        };
+        let f = sp.eval_toward(&ls);
+        if f == Rgb::ZERO || !sp.sees(scene, &ls) {
+            let p_bsdf = if densities == Densities::Both {
+                sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi))
+            } else {
+                0.0
             };
-            let f = sp.eval_toward(&ls);
-            if f != Rgb::ZERO {
-                shadow_rays[traced] = sp.shadow_ray(&ls);
-                lanes[k] = traced;
-                traced += 1;
-            }
-            *slot = Some((ls, f));
-        }
-        let blocked = scene.geometry.occluded_packet(&shadow_rays[..traced]);
-        for (k, slot) in drawn[..batch].iter().enumerate() {
-            let Some((ls, f)) = *slot else {
-                records.push(SampleRecord::default());
-                continue;
-            };
-            if f == Rgb::ZERO || blocked >> lanes[k] & 1 == 1 {
-                let p_bsdf = if densities == Densities::Both {
-                    sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi))
-                } else {
-                    0.0
-                };
-                records.push(SampleRecord {
-                    p_light: ls.pdf,
-                    p_bsdf,
-                    ..SampleRecord::default()
-                });
-                continue;
-            }
             records.push(SampleRecord {
-                f: f * ls.radiance,
-                p_bsdf: sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi)),
                 p_light: ls.pdf,
-                delta: false,
+                p_bsdf,
+                ..SampleRecord::default()
             });
+            continue;
         }
+        records.push(SampleRecord {
+            f: f * ls.radiance,
+            p_bsdf: sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi)),
+            p_light: ls.pdf,
+            delta: false,
+        });
     }
 }
 
