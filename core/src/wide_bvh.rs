@@ -116,9 +116,9 @@ impl WideBvh {
             }
             let mut node = WideNode::EMPTY;
             for (slot, &child) in children[..count].iter().enumerate() {
-                let source = &bvh2.nodes[child as usize];
+                let child_node = &bvh2.nodes[child as usize];
                 let primitives = counts[child as usize];
-                if source.is_leaf() || primitives <= MAX_LEAF_PRIMITIVES {
+                if child_node.is_leaf() || primitives <= MAX_LEAF_PRIMITIVES {
                     node.child[slot] = LEAF | order.len() as u32;
                     node.count[slot] = primitives as u8;
                     subtree.push(child);
@@ -139,7 +139,7 @@ impl WideBvh {
                     work.push((nodes.len() as u32, child, level + 1));
                     nodes.push(WideNode::EMPTY);
                 }
-                let bounds = source.aabb();
+                let bounds = child_node.aabb();
                 for axis in 0..3 {
                     node.bounds[2 * axis][slot] = bounds.min[axis];
                     node.bounds[2 * axis + 1][slot] = bounds.max[axis];
