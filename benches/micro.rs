@@ -148,6 +148,8 @@ fn ray_queries(c: &mut Criterion) {
             .iter()
             .filter(|r| geometry.intersect(r).is_some())
             .count();
+        let blocked = rays.iter().filter(|r| geometry.occluded(r)).count();
+        assert_eq!(blocked, hits, "{name}: occluded and intersect disagree");
         println!("{name}: {hits} of {BATCH} rays hit");
         group.bench_function(format!("closest_hit_{name}"), |b| {
             b.iter(|| {

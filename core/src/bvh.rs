@@ -1,4 +1,5 @@
-//! Building the CWBVH that [`crate::accel::Geometry`] traverses, on any input.
+//! Building the BVH that [`crate::accel::Geometry`] traverses, on any input: a binary BVH
+//! (obvhs's PLOC, or binned SAH below) collapsed into [`WideBvh`]'s 8-wide nodes.
 //!
 //! obvhs's PLOC builder gives good trees fast on ordinary meshes, but on heavily overlapping
 //! primitives (a fan of thin triangles sharing a vertex, as in a disk or a cylinder cap) it makes
@@ -11,20 +12,20 @@
 //! - every PLOC tree's depth is measured, and one as deep as the traversal stack is rebuilt the
 //!   same way.
 
+use crate::wide_bvh::WideBvh;
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
-use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
-use std::time::Duration;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::ploc::PlocBuilder;
 
 /// Trees must be shallower than this: the traversal's stack ([`crate::wide_bvh`]) is sized for
 /// it (as obvhs's, `cwbvh::TRAVERSAL_STACK_SIZE`).
 pub(crate) const TRAVERSAL_STACK_SIZE: usize = 32;
 
-/// Depth the top-down builder keeps its BVH2 within (a CWBVH is never deeper than the BVH2 it
-/// collapses), leaving a margin below [`TRAVERSAL_STACK_SIZE`].
+/// Depth the top-down builder keeps its BVH2 within (the 8-wide tree is never deeper than the
+/// BVH2 it collapses), leaving a margin below [`TRAVERSAL_STACK_SIZE`].
 const MAX_BVH2_DEPTH: usize = TRAVERSAL_STACK_SIZE - 2;
 
 /// Above this ratio of the summed half-areas of the primitives' boxes to the scene box's, boxes
@@ -41,21 +42,32 @@ pub enum Builder {
     BinnedSah,
 }
 
-/// Builds the CWBVH over primitives with the boxes `aabbs`; its depth is below
-/// [`TRAVERSAL_STACK_SIZE`].
-pub fn build(aabbs: &[Aabb]) -> (CwBvh, Builder) {
-    if !heavily_overlapping(aabbs) {
-        let bvh = obvhs::cwbvh::builder::build_cwbvh(
-            aabbs,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
+/// Builds the 8-wide BVH over primitives with the boxes `exact` (obvhs builds on the boxes ×
+/// `scale`, a power of two); its depth is below [`TRAVERSAL_STACK_SIZE`]. Returns it, the
+/// primitives' leaf order (leaf slot `j` holds primitive `order[j]`) and the builder used.
+pub fn build(exact: &[Aabb], scale: f32) -> (WideBvh, Vec<u32>, Builder) {
+    let scaled: Vec<Aabb> = exact
+        .iter()
+        .map(|b| Aabb::new(b.min * scale, b.max * scale))
+        .collect();
+    if !heavily_overlapping(&scaled) {
+        // obvhs's `medium_build` preset without its conversion to a compressed CWBVH.
+        let params = BvhBuildParams::medium_build();
+        let mut bvh2 = PlocBuilder::with_capacity(scaled.len()).build(
+            params.ploc_search_distance,
+            &scaled,
+            (0..scaled.len() as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
         );
-        if depth(&bvh) < TRAVERSAL_STACK_SIZE {
-            return (bvh, Builder::Ploc);
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        let (bvh, order, depth) = WideBvh::collapse(&mut bvh2, exact);
+        if depth < TRAVERSAL_STACK_SIZE {
+            return (bvh, order, Builder::Ploc);
         }
     }
-    let bvh2 = binned_sah_bvh2(aabbs);
-    (bvh2_to_cwbvh(&bvh2, 3, true, false), Builder::BinnedSah)
+    let (bvh, order, _) = WideBvh::collapse(&mut binned_sah_bvh2(&scaled), exact);
+    (bvh, order, Builder::BinnedSah)
 }
 
 fn heavily_overlapping(aabbs: &[Aabb]) -> bool {
@@ -64,25 +76,6 @@ fn heavily_overlapping(aabbs: &[Aabb]) -> bool {
     let sum: f64 = aabbs.iter().map(|a| a.half_area() as f64).sum();
     // A flat scene (zero area box) cannot overlap much; its sum is also zero then.
     scene > 0.0 && sum > OVERLAP_LIMIT as f64 * scene
-}
-
-/// Depth of a CWBVH: nodes on the longest path from the root to a leaf (0 for an empty tree).
-pub fn depth(bvh: &CwBvh) -> usize {
-    if bvh.nodes.is_empty() {
-        return 0;
-    }
-    let mut deepest = 0;
-    let mut stack = vec![(0usize, 1usize)];
-    while let Some((node, d)) = stack.pop() {
-        deepest = deepest.max(d);
-        let n = &bvh.nodes[node];
-        for child in 0..8 {
-            if !n.is_child_empty(child) && !n.is_leaf(child) {
-                stack.push((n.child_node_index(child) as usize, d + 1));
-            }
-        }
-    }
-    deepest
 }
 
 /// Number of bins per axis of the SAH sweep (Wald 2007 uses 16 to 32; more buys little).
@@ -254,10 +247,10 @@ mod tests {
         // PLOC: depth 46 at 16 384 triangles, 101 at 65 536 (about 17 s).
         for n in [4096, 65536] {
             let start = std::time::Instant::now();
-            let (bvh, builder) = build(&fan(n));
+            let (bvh, order, builder) = build(&fan(n), 1.0);
             assert_eq!(builder, Builder::BinnedSah, "{n}");
-            assert!(depth(&bvh) < TRAVERSAL_STACK_SIZE, "{n}: {}", depth(&bvh));
-            assert_eq!(bvh.primitive_indices.len(), n);
+            assert!(bvh.depth() < TRAVERSAL_STACK_SIZE, "{n}: {}", bvh.depth());
+            assert_eq!(order.len(), n);
             // Generous for a loaded test machine: the build takes about 0.05 s.
             assert!(
                 start.elapsed().as_secs_f64() < 5.0,
@@ -273,10 +266,10 @@ mod tests {
         let nested: Vec<Aabb> = (0..200)
             .map(|i| Aabb::new(Vec3A::ZERO, Vec3A::splat(1.2f32.powi(i % 120))))
             .collect();
-        let bvh2 = binned_sah_bvh2(&nested);
-        let cw = bvh2_to_cwbvh(&bvh2, 3, true, false);
-        assert!(depth(&cw) < TRAVERSAL_STACK_SIZE, "{}", depth(&cw));
-        let mut seen: Vec<u32> = cw.primitive_indices.clone();
+        let (bvh, order, depth) = WideBvh::collapse(&mut binned_sah_bvh2(&nested), &nested);
+        assert!(depth < TRAVERSAL_STACK_SIZE, "{depth}");
+        assert_eq!(bvh.depth(), depth);
+        let mut seen = order;
         seen.sort_unstable();
         assert_eq!(seen, (0..200).collect::<Vec<u32>>());
     }
@@ -298,8 +291,8 @@ mod tests {
                 );
             }
         }
-        let (bvh, builder) = build(&tris);
+        let (bvh, _, builder) = build(&tris, 1.0);
         assert_eq!(builder, Builder::Ploc);
-        assert!(depth(&bvh) < TRAVERSAL_STACK_SIZE);
+        assert!(bvh.depth() < TRAVERSAL_STACK_SIZE);
     }
 }

@@ -1,5 +1,5 @@
-//! An eight-wide BVH with exact, uncompressed child boxes, and its traversal: the shape of the
-//! tree is obvhs's CWBVH (its builder and its collapse into 8-wide nodes), the node test is ours.
+//! An eight-wide BVH with exact, uncompressed child boxes, and its traversal: obvhs builds a
+//! binary BVH ([`crate::bvh`]), which is collapsed here into 8-wide nodes; the node test is ours.
 //!
 //! Why not obvhs's own traversal: its node test reads child boxes quantised to 8 bits (rounded
 //! outward to a coarse grid, so rays enter children they miss), converts them to floats per
@@ -19,12 +19,14 @@
 
 use crate::math::{gamma, next_float_down, next_float_up};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::CwBvh;
+use obvhs::bvh2::Bvh2;
 
 /// Marks a leaf in [`WideNode::child`]; the other bits are its first primitive.
 const LEAF: u32 = 1 << 31;
 /// An empty child slot in [`WideNode::child`] (its box is empty too, so no ray enters it).
 const EMPTY: u32 = u32::MAX;
+/// Most primitives in one leaf: a child with more becomes a node of its own.
+const MAX_LEAF_PRIMITIVES: u32 = 3;
 
 /// Entries of the traversal stack: a node pushes at most 7 children, and the tree has fewer
 /// levels than [`crate::bvh::TRAVERSAL_STACK_SIZE`] ([`crate::bvh::build`] keeps it so).
@@ -58,42 +60,113 @@ impl WideNode {
     };
 }
 
-/// The BVH: node 0 is the root. Leaves index primitives in obvhs's leaf order
-/// (`CwBvh::primitive_indices`), which is the order the caller keeps its primitives in.
+/// The BVH: node 0 is the root. Leaves index primitives in the tree's leaf order (returned by
+/// [`WideBvh::build`]), which is the order the caller keeps its primitives in.
 #[derive(Clone, Debug, Default)]
 pub struct WideBvh {
     nodes: Vec<WideNode>,
 }
 
 impl WideBvh {
-    /// Builds the tree over `boxes` (obvhs builds it on the boxes × `scale`, a power of two that
-    /// keeps obvhs' arithmetic in range; the nodes keep the exact unscaled boxes). Returns the
-    /// tree and the primitives' leaf order: leaf slot `j` holds primitive `order[j]`.
+    /// Builds the tree over `boxes` (obvhs builds its BVH2 on the boxes × `scale`, a power of
+    /// two that keeps obvhs' arithmetic in range; the nodes keep the exact unscaled boxes).
+    /// Returns the tree and the primitives' leaf order: leaf slot `j` holds primitive `order[j]`.
     pub fn build(boxes: &[Aabb], scale: f32) -> (Self, Vec<u32>) {
-        let scaled: Vec<Aabb> = boxes
-            .iter()
-            .map(|b| Aabb::new(b.min * scale, b.max * scale))
-            .collect();
-        let (cwbvh, _) = crate::bvh::build(&scaled);
-        let leaf_boxes: Vec<Aabb> = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| boxes[i as usize])
-            .collect();
-        (
-            Self::from_cwbvh(&cwbvh, &leaf_boxes),
-            cwbvh.primitive_indices,
-        )
+        let (bvh, order, _) = crate::bvh::build(boxes, scale);
+        (bvh, order)
     }
 
-    /// The tree of `bvh` with exact boxes: `leaf_boxes[i]` bounds the `i`-th primitive in leaf
-    /// order (in the space rays are given in, which need not be the space `bvh` was built in).
-    fn from_cwbvh(bvh: &CwBvh, leaf_boxes: &[Aabb]) -> Self {
-        let mut nodes = vec![WideNode::EMPTY; bvh.nodes.len()];
-        if !nodes.is_empty() {
-            fill(bvh, 0, leaf_boxes, &mut nodes);
+    /// Collapses `bvh2` (one primitive per leaf, as both of [`crate::bvh`]'s builders make)
+    /// into 8-wide nodes, largest child first: each node starts from one BVH2 node and opens
+    /// the child of largest surface area among its inner BVH2 nodes until it has 8 children
+    /// (Wald, Benthin and Boulos 2008). Children left with at most [`MAX_LEAF_PRIMITIVES`]
+    /// primitives become leaves. `exact[p]` is the box of primitive `p` in the space rays are
+    /// given in (not necessarily `bvh2`'s); `bvh2`'s boxes are replaced by those exact ones.
+    /// Returns the tree, the primitives' leaf order and the tree's depth (levels of nodes).
+    pub(crate) fn collapse(bvh2: &mut Bvh2, exact: &[Aabb]) -> (Self, Vec<u32>, usize) {
+        if bvh2.nodes.is_empty() {
+            return (WideBvh::default(), Vec::new(), 0);
         }
-        WideBvh { nodes }
+        let counts = refit_exact(bvh2, exact);
+        let mut nodes = Vec::with_capacity(bvh2.nodes.len() / 4 + 1);
+        nodes.push(WideNode::EMPTY);
+        let mut order = Vec::with_capacity(exact.len());
+        let mut deepest = 0;
+        // (wide node, the BVH2 node it stands for, its level)
+        let mut work = vec![(0u32, 0u32, 1usize)];
+        let mut subtree = Vec::new();
+        while let Some((wide, source, level)) = work.pop() {
+            deepest = deepest.max(level);
+            let mut children = [source; 8];
+            let mut count = 1;
+            while count < 8 {
+                let mut widest: Option<(usize, f32)> = None;
+                for (slot, &child) in children[..count].iter().enumerate() {
+                    let node = &bvh2.nodes[child as usize];
+                    let area = node.aabb().half_area();
+                    if !node.is_leaf() && widest.is_none_or(|(_, a)| area > a) {
+                        widest = Some((slot, area));
+                    }
+                }
+                let Some((slot, _)) = widest else { break };
+                let first = bvh2.nodes[children[slot] as usize].first_index;
+                children[slot] = first;
+                children[count] = first + 1;
+                count += 1;
+            }
+            let mut node = WideNode::EMPTY;
+            for (slot, &child) in children[..count].iter().enumerate() {
+                let child_node = &bvh2.nodes[child as usize];
+                let primitives = counts[child as usize];
+                if child_node.is_leaf() || primitives <= MAX_LEAF_PRIMITIVES {
+                    node.child[slot] = LEAF | order.len() as u32;
+                    node.count[slot] = primitives as u8;
+                    subtree.push(child);
+                    while let Some(n) = subtree.pop() {
+                        let n = &bvh2.nodes[n as usize];
+                        if n.is_leaf() {
+                            let first = n.first_index as usize;
+                            order.extend_from_slice(
+                                &bvh2.primitive_indices[first..first + n.prim_count as usize],
+                            );
+                        } else {
+                            // Right pushed first: leaves come out left to right.
+                            subtree.extend([n.first_index + 1, n.first_index]);
+                        }
+                    }
+                } else {
+                    node.child[slot] = nodes.len() as u32;
+                    work.push((nodes.len() as u32, child, level + 1));
+                    nodes.push(WideNode::EMPTY);
+                }
+                let bounds = child_node.aabb();
+                for axis in 0..3 {
+                    node.bounds[2 * axis][slot] = bounds.min[axis];
+                    node.bounds[2 * axis + 1][slot] = bounds.max[axis];
+                }
+            }
+            nodes[wide as usize] = node;
+        }
+        (WideBvh { nodes }, order, deepest)
+    }
+
+    /// Levels of nodes on the longest path from the root to a leaf (0 for an empty tree).
+    #[cfg(test)]
+    pub(crate) fn depth(&self) -> usize {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let mut deepest = 0;
+        let mut stack = vec![(0u32, 1usize)];
+        while let Some((node, level)) = stack.pop() {
+            deepest = deepest.max(level);
+            for &child in &self.nodes[node as usize].child {
+                if child != EMPTY && child & LEAF == 0 {
+                    stack.push((child, level + 1));
+                }
+            }
+        }
+        deepest
     }
 
     /// The closest primitive along the ray. `hit(i, t_max)` tests primitive `i` and returns its
@@ -132,38 +205,40 @@ impl WideBvh {
     }
 }
 
-/// Fills `nodes[index]` from the CWBVH node of that index and returns its box (post-order: the
-/// children's boxes are needed first; the depth is below 32, so recursion is safe).
-fn fill(bvh: &CwBvh, index: usize, leaf_boxes: &[Aabb], nodes: &mut [WideNode]) -> Aabb {
-    let source = &bvh.nodes[index];
-    let mut node = WideNode::EMPTY;
-    let mut total = Aabb::empty();
-    let mut slot = 0;
-    for child in 0..8 {
-        if source.is_child_empty(child) {
-            continue;
+/// Replaces every box of `bvh2` by the union of the exact boxes of its primitives
+/// (`exact[p]` for primitive `p`) and returns each node's number of primitives.
+fn refit_exact(bvh2: &mut Bvh2, exact: &[Aabb]) -> Vec<u32> {
+    // Pre-order (parents before children), then refit in reverse: children before parents.
+    let mut pre_order = Vec::with_capacity(bvh2.nodes.len());
+    let mut stack = vec![0u32];
+    while let Some(n) = stack.pop() {
+        pre_order.push(n);
+        let node = &bvh2.nodes[n as usize];
+        if !node.is_leaf() {
+            stack.extend([node.first_index, node.first_index + 1]);
         }
-        let bounds = if source.is_leaf(child) {
-            let (first, count) = source.child_primitives(child);
-            node.child[slot] = LEAF | first;
-            node.count[slot] = count as u8;
-            leaf_boxes[first as usize..(first + count) as usize]
-                .iter()
-                .fold(Aabb::empty(), |a, b| a.union(b))
-        } else {
-            let inner = source.child_node_index(child);
-            node.child[slot] = inner;
-            fill(bvh, inner as usize, leaf_boxes, nodes)
-        };
-        for axis in 0..3 {
-            node.bounds[2 * axis][slot] = bounds.min[axis];
-            node.bounds[2 * axis + 1][slot] = bounds.max[axis];
-        }
-        total = total.union(&bounds);
-        slot += 1;
     }
-    nodes[index] = node;
-    total
+    let mut counts = vec![0u32; bvh2.nodes.len()];
+    for &n in pre_order.iter().rev() {
+        let node = bvh2.nodes[n as usize];
+        let first = node.first_index as usize;
+        let (bounds, count) = if node.is_leaf() {
+            let primitives = &bvh2.primitive_indices[first..first + node.prim_count as usize];
+            let bounds = primitives
+                .iter()
+                .fold(Aabb::empty(), |b, &p| b.union(&exact[p as usize]));
+            (bounds, node.prim_count)
+        } else {
+            let (left, right) = (&bvh2.nodes[first], &bvh2.nodes[first + 1]);
+            (
+                left.aabb().union(right.aabb()),
+                counts[first] + counts[first + 1],
+            )
+        };
+        bvh2.nodes[n as usize].set_aabb(bounds);
+        counts[n as usize] = count;
+    }
+    counts
 }
 
 /// The box of a sphere, rounded outward (`center ± radius` in f32 may round inward).
