@@ -2,6 +2,7 @@
 
 import json
 import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -61,3 +62,13 @@ def small_scene(tmp_path: Path) -> Path:
     path = tmp_path / "scene.ron"
     path.write_text(SMALL_SCENE)
     return path
+
+
+@pytest.fixture
+def python_sigint_handler():
+    """Python's own SIGINT handler for the test's duration: a process started in the background
+    without job control (`cmd &` in a script) inherits SIGINT ignored, and Python then never
+    raises KeyboardInterrupt, whatever the binding does."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -209,7 +209,7 @@ def test_gil_is_released_while_rendering():
 
 
 @pytest.mark.skipif(os.name != "posix", reason="sends SIGINT")
-def test_ctrl_c_interrupts_the_render_and_the_scene_renders_again():
+def test_ctrl_c_interrupts_the_render_and_the_scene_renders_again(python_sigint_handler):
     scene = lumis.load(SCENES / "cornell.ron", overrides=SMALL["cornell"])
     # About a minute of work on two cores: only an interrupt ends it within the test.
     timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))

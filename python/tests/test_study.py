@@ -154,7 +154,7 @@ def test_an_exception_in_progress_stops_the_study(tmp_path, small_scene):
 
 
 @pytest.mark.skipif(os.name != "posix", reason="sends SIGINT")
-def test_ctrl_c_interrupts_the_study(tmp_path):
+def test_ctrl_c_interrupts_the_study(tmp_path, python_sigint_handler):
     scene = Path(__file__).resolve().parents[2] / "scenes" / "veach.ron"
     # Minutes of work on two cores (a reference of 2^20 samples per light per pixel): only an
     # interrupt ends it within the test.
