@@ -662,22 +662,22 @@ fn trade(
     let own = time_at(&values, 0);
     let has_target = error_at(&values, 0);
     // Over the headline: read where both curves reach the target, as far out as the farther.
-    let headline_time = if headline.is_some() {
-        time_at(&values, 2)
-    } else {
-        f64::NAN
-    };
-    let speedup_over_headline = match extent(2, headline_time) {
-        // Where α's own time is only a bound, so is the ratio: none is given.
-        Extent::Beyond { .. } => None,
-        _ if !headline_time.is_finite() => None,
-        headline_extent => {
-            reading(own, &|v| (time_at(v, 2) - time_at(v, 0)).exp()).map(|r| Reading {
-                extent: r.extent.farther(headline_extent),
-                ..r
-            })
+    let speedup_over_headline = headline.and_then(|_| {
+        let headline_time = time_at(&values, 2);
+        if !headline_time.is_finite() {
+            return None;
         }
-    };
+        match extent(2, headline_time) {
+            // Where α's own time is only a bound, so is the ratio: none is given.
+            Extent::Beyond { .. } => None,
+            headline_extent => {
+                reading(own, &|v| (time_at(v, 2) - time_at(v, 0)).exp()).map(|r| Reading {
+                    extent: r.extent.farther(headline_extent),
+                    ..r
+                })
+            }
+        }
+    });
     Trade {
         integrator,
         label: label.to_string(),
@@ -792,49 +792,65 @@ mod tests {
         }
     }
 
-    /// Collect is a pure function of the results: the same cells added in the plan's order or
-    /// reversed, or after a round trip through their serialised form, give bit-identical
-    /// analyses (what issue 16's `--collect` over cells run anywhere relies on).
-    #[test]
-    fn collect_is_independent_of_the_order_and_the_transport_of_results() {
+    const W: u32 = 24;
+    const H: u32 = 16;
+
+    /// A one-scene study of `integrators` at N = 4, 8, 16 with K₀ = 3 and a cap of 6, its plan,
+    /// the reference's luminance, and the synthetic results of every planned round.
+    fn synthetic_study(integrators: &str) -> (StudyConfig, ScenePlan, Vec<f64>, Vec<CellResult>) {
         crate::link_plugins();
-        let (w, h) = (24u32, 16u32);
         let mut config = StudyConfig::new(vec!["s/03.ron".into()], "out".into()).expect("defaults");
-        config.integrators = parse_integrators("balance,alpha,light").expect("list");
+        config.integrators = parse_integrators(integrators).expect("list");
         config.budgets = parse_budgets("4,8,16").expect("ladder");
         config.runs = 3;
         config.max_runs = 6;
         let plan = plan_scene(&config, 0, "s/03.ron".into()).expect("plan");
-        let luminance: Vec<f64> = (0..(w * h) as usize)
+        let luminance: Vec<f64> = (0..(W * H) as usize)
             .map(|p| 0.1 + (p % 7) as f64 * 0.3)
             .collect();
-        let reference = || Reference {
+        let results = plan
+            .cells(1..=3, true)
+            .into_iter()
+            .chain(plan.cells(4..=6, false))
+            .map(|c| synthetic(&c, &luminance, W, H))
+            .collect();
+        (config, plan, luminance, results)
+    }
+
+    /// The analysis of `results` against the noiseless reference `luminance`.
+    fn analyse(
+        config: &StudyConfig,
+        plan: &ScenePlan,
+        luminance: &[f64],
+        results: &mut dyn Iterator<Item = CellResult>,
+    ) -> SceneAnalysis {
+        let reference = Reference {
             pixels: luminance.iter().map(|&y| Rgb::splat(y as f32)).collect(),
-            luminance: luminance.clone(),
+            luminance: luminance.to_vec(),
             variance: vec![0.0; luminance.len()],
             samples: None,
             cpu_time: None,
             path: "synthetic".into(),
             cached: false,
         };
-        let cells: Vec<_> = plan
-            .cells(1..=3, true)
-            .into_iter()
-            .chain(plan.cells(4..=6, false))
-            .collect();
-        let results: Vec<CellResult> = cells
-            .iter()
-            .map(|c| synthetic(c, &luminance, w, h))
-            .collect();
+        let context = Context::new(reference, 0.01, 8, 1.0, W, H);
+        let mut collector = Collector::new(plan.clone(), context, config);
+        for r in results {
+            collector.add(&r).expect("a run of this plan");
+        }
+        collector.analyse(false).expect("complete runs")
+    }
+
+    /// Collect is a pure function of the results: the same cells added in the plan's order or
+    /// reversed, or after a round trip through their serialised form, give bit-identical
+    /// analyses (what issue 16's `--collect` over cells run anywhere relies on).
+    #[test]
+    fn collect_is_independent_of_the_order_and_the_transport_of_results() {
+        let (config, plan, luminance, results) = synthetic_study("balance,alpha,light");
         let analyse_at = |precision: f64, results: &mut dyn Iterator<Item = CellResult>| {
-            let context = Context::new(reference(), 0.01, 8, 1.0, w, h);
             let mut config = config.clone();
             config.precision = precision;
-            let mut collector = Collector::new(plan.clone(), context, &config);
-            for r in results {
-                collector.add(&r).expect("a run of this plan");
-            }
-            collector.analyse(false).expect("complete runs")
+            analyse(&config, &plan, &luminance, results)
         };
         let analyse =
             |results: &mut dyn Iterator<Item = CellResult>| analyse_at(config.precision, results);
@@ -896,5 +912,53 @@ mod tests {
                 assert_eq!(a.relative_variance, b.relative_variance, "{}", a.label);
             }
         }
+    }
+
+    /// The speed-up over the headline α reads α's curve against the integrator's at balance's
+    /// target: α over itself is 1, balance over α is the inverse of α's speed-up over balance
+    /// (the same two curves, replicate by replicate); a study without an integrated α has none
+    /// (and must not read a third curve that is not there).
+    #[test]
+    fn speedups_over_the_headline_agree_with_those_over_balance_and_need_an_alpha() {
+        let (config, plan, luminance, results) = synthetic_study("balance,alpha,light");
+        let analysis = analyse(&config, &plan, &luminance, &mut results.into_iter());
+        let of = |label: &str| {
+            let t = analysis
+                .trade
+                .iter()
+                .find(|t| t.label == label)
+                .expect(label);
+            (
+                t.speedup.map(|r| r.estimate),
+                t.speedup_over_headline.map(|r| r.estimate),
+            )
+        };
+        let (Some(alpha_over_balance), Some(alpha_over_alpha)) = of("alpha") else {
+            panic!("α reaches the target: {:?}", of("alpha"))
+        };
+        assert!(
+            (alpha_over_alpha.value - 1.0).abs() < 1e-12,
+            "{alpha_over_alpha:?}"
+        );
+        let (_, Some(balance_over_alpha)) = of("balance") else {
+            panic!("balance reaches its own target")
+        };
+        assert!(
+            (balance_over_alpha.value * alpha_over_balance.value - 1.0).abs() < 1e-9,
+            "{balance_over_alpha:?} · {alpha_over_balance:?}"
+        );
+        // Log-symmetric intervals of reciprocal values from the same replicates: reciprocal ends.
+        assert!((balance_over_alpha.lo * alpha_over_balance.hi - 1.0).abs() < 1e-9);
+
+        let (config, plan, luminance, results) = synthetic_study("balance,light");
+        let analysis = analyse(&config, &plan, &luminance, &mut results.into_iter());
+        assert_eq!(analysis.trade.len(), 2);
+        assert!(
+            analysis
+                .trade
+                .iter()
+                .all(|t| t.speedup_over_headline.is_none())
+        );
+        assert!(analysis.trade.iter().all(|t| t.speedup.is_some()));
     }
 }
