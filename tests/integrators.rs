@@ -954,3 +954,79 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
     }
     assert!(lit >= 2, "only {lit} lights reach the plate");
 }
+
+/// The light density of a BSDF sample that an occluder blocks before the light (the α
+/// statistics and `optimal_mis`'s system read it) is the one the sample gets when nothing blocks
+/// it: the light, intersected alone, gives the same density as the real hit. The same BSDF
+/// samples (same stream) are drawn at the same point of one scene with an occluder between the
+/// floor and two lights (a sphere, a mesh rectangle) and of the same scene without it.
+#[test]
+fn occluded_bsdf_samples_get_the_density_of_the_unoccluded_light() {
+    use lumis::integrators::estimator::{Densities, ShadingPoint, draw_bsdf_samples};
+
+    let scene_text = |occluder: &str| {
+        format!(
+            r#"Scene(
+    camera: (position: (0, 1, -1), target: (0, 0, 0), fov: 1),
+    film: (width: 3, height: 3),
+    integrator: (type: "balance"),
+    bsdfs: {{ "grey": (type: "diffuse", reflectance: 0.5) }},
+    shapes: [
+        (type: "rectangle", bsdf: "grey", transform: (scale: (3, 3, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        (type: "sphere", bsdf: "grey", radius: 0.4, center: (0.8, 1.5, 0), emitter: (type: "area", radiance: 1)),
+        (type: "rectangle", bsdf: "grey", emitter: (type: "area", radiance: 1),
+            transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (-0.8, 1.5, 0))),
+        {occluder}
+    ],
+)"#
+        )
+    };
+    let occluder = r#"(type: "rectangle", bsdf: "grey",
+            transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (0, 0.9, 0)))"#;
+    let (_clear_dir, clear_path) = scene_file("clear.ron", &scene_text(""));
+    let (_blocked_dir, blocked_path) = scene_file("blocked.ron", &scene_text(occluder));
+    let clear = common::load(&clear_path, &[]).unwrap();
+    let blocked = common::load(&blocked_path, &[]).unwrap();
+    const COUNT: u32 = 8192;
+    let records = |scene: &lumis::scene::Scene, light: usize| {
+        let ray = lumis::integrator::CameraSample::new(scene, glam::UVec2::new(1, 1), 0).ray;
+        let sp = ShadingPoint::new(scene, scene.intersect(&ray).unwrap(), -ray.direction);
+        let mut sampler = lumis::sampler::Sampler::new(11, 12, 13);
+        let mut records = Vec::new();
+        draw_bsdf_samples(
+            scene,
+            &sp,
+            light,
+            COUNT,
+            &mut sampler,
+            &mut records,
+            Densities::Both,
+        );
+        records
+    };
+    for light in 0..clear.scene.emitters.len() {
+        let (open, shut) = (records(&clear.scene, light), records(&blocked.scene, light));
+        assert_eq!(open.len(), shut.len());
+        let mut occluded = 0;
+        for (i, (o, s)) in open.iter().zip(&shut).enumerate() {
+            assert_eq!(
+                o.p_bsdf, s.p_bsdf,
+                "light {light}, sample {i}: not the same sample"
+            );
+            // The real hit and the light's own intersection differ by rounding only.
+            let tolerance = 1e-4 * o.p_light.max(s.p_light);
+            assert!(
+                (o.p_light - s.p_light).abs() <= tolerance,
+                "light {light}, sample {i}: density {} unoccluded, {} behind the occluder",
+                o.p_light,
+                s.p_light
+            );
+            occluded += usize::from(!o.is_black() && s.is_black());
+        }
+        // About 4 % of cosine samples reach each light, half of them through the occluder.
+        assert!(
+            occluded > COUNT as usize / 100,
+            "light {light}: only {occluded} samples blocked: the test tests nothing"
+        );
+    }
+}

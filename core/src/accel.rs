@@ -13,6 +13,7 @@ use crate::wide_bvh::{RayBoxTest, WideBvh, sphere_box};
 use glam::Vec3;
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
+use rayon::prelude::*;
 use std::cell::Cell;
 
 thread_local! {
@@ -423,7 +424,11 @@ impl Geometry {
                 panic!("Geometry::new: shape {i}: {e}");
             }
         }
-        let mut prims = Vec::new();
+        let capacity = shapes.iter().map(|s| match s {
+            ShapeGeometry::Mesh(mesh) => mesh.indices.len(),
+            ShapeGeometry::Sphere(_) => 1,
+        });
+        let mut prims = Vec::with_capacity(capacity.sum());
         for (shape_index, geometry) in shapes.iter().enumerate() {
             let shape = shape_index as u32;
             match geometry {
@@ -446,11 +451,11 @@ impl Geometry {
                 }),
             }
         }
-        let boxes: Vec<Aabb> = prims.iter().map(Boundable::aabb).collect();
+        let boxes: Vec<Aabb> = prims.par_iter().map(Boundable::aabb).collect();
         let total = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
         let scale = bvh_scale(&total);
         let (bvh, order) = WideBvh::build(&boxes, scale);
-        let primitives = order.iter().map(|&i| prims[i as usize]).collect();
+        let primitives = order.par_iter().map(|&i| prims[i as usize]).collect();
         Geometry {
             shapes,
             primitives,

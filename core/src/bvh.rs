@@ -19,6 +19,7 @@ use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::ploc::PlocBuilder;
+use rayon::prelude::*;
 
 /// Trees must be shallower than this: the traversal's stack ([`crate::wide_bvh`]) is sized for
 /// it (as obvhs's, `cwbvh::TRAVERSAL_STACK_SIZE`).
@@ -47,7 +48,7 @@ pub enum Builder {
 /// primitives' leaf order (leaf slot `j` holds primitive `order[j]`) and the builder used.
 pub fn build(exact: &[Aabb], scale: f32) -> (WideBvh, Vec<u32>, Builder) {
     let scaled: Vec<Aabb> = exact
-        .iter()
+        .par_iter()
         .map(|b| Aabb::new(b.min * scale, b.max * scale))
         .collect();
     if !heavily_overlapping(&scaled) {
@@ -61,12 +62,12 @@ pub fn build(exact: &[Aabb], scale: f32) -> (WideBvh, Vec<u32>, Builder) {
             params.search_depth_threshold,
         );
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
-        let (bvh, order, depth) = WideBvh::collapse(&mut bvh2, exact);
+        let (bvh, order, depth) = WideBvh::collapse(&bvh2, exact);
         if depth < TRAVERSAL_STACK_SIZE {
             return (bvh, order, Builder::Ploc);
         }
     }
-    let (bvh, order, _) = WideBvh::collapse(&mut binned_sah_bvh2(&scaled), exact);
+    let (bvh, order, _) = WideBvh::collapse(&binned_sah_bvh2(&scaled), exact);
     (bvh, order, Builder::BinnedSah)
 }
 
@@ -242,6 +243,38 @@ mod tests {
             .collect()
     }
 
+    /// obvhs's parallel build splits its work by the number of threads above 300 000 to
+    /// 500 000 primitives; the tree must not depend on it, or an image would depend on the
+    /// machine that loaded the scene (the build runs in the global pool, not the render's).
+    #[test]
+    fn the_tree_does_not_depend_on_the_number_of_threads() {
+        let mut sampler = crate::sampler::Sampler::new(7, 0, 0);
+        let mut unit = || sampler.next_1d();
+        let boxes: Vec<Aabb> = (0..600_000)
+            .map(|_| {
+                let lo = Vec3A::new(unit(), unit(), unit()) * 100.0;
+                Aabb::new(lo, lo + Vec3A::new(unit(), unit(), unit()))
+            })
+            .collect();
+        let build_with = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| build(&boxes, 1.0))
+        };
+        let (bvh, order, builder) = build_with(1);
+        assert_eq!(builder, Builder::Ploc);
+        for threads in [2, 3, 8] {
+            let (other, other_order, _) = build_with(threads);
+            assert!(
+                other_order == order,
+                "{threads} threads: another leaf order"
+            );
+            assert!(other == bvh, "{threads} threads: other nodes");
+        }
+    }
+
     #[test]
     fn fans_get_shallow_trees_quickly() {
         // PLOC: depth 46 at 16 384 triangles, 101 at 65 536 (about 17 s).
@@ -266,7 +299,7 @@ mod tests {
         let nested: Vec<Aabb> = (0..200)
             .map(|i| Aabb::new(Vec3A::ZERO, Vec3A::splat(1.2f32.powi(i % 120))))
             .collect();
-        let (bvh, order, depth) = WideBvh::collapse(&mut binned_sah_bvh2(&nested), &nested);
+        let (bvh, order, depth) = WideBvh::collapse(&binned_sah_bvh2(&nested), &nested);
         assert!(depth < TRAVERSAL_STACK_SIZE, "{depth}");
         assert_eq!(bvh.depth(), depth);
         let mut seen = order;

@@ -33,7 +33,7 @@ const MAX_LEAF_PRIMITIVES: u32 = 3;
 const STACK_SIZE: usize = 7 * crate::bvh::TRAVERSAL_STACK_SIZE + 1;
 
 /// Eight children's boxes and references (256 bytes, four cache lines).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 struct WideNode {
     /// min x, max x, min y, max y, min z, max z of each child; an empty slot has min = +∞ and
@@ -46,6 +46,50 @@ struct WideNode {
 }
 
 impl WideNode {
+    /// The union of the children's boxes.
+    fn bounds(&self) -> Aabb {
+        let min = |a: &[f32; 8]| a.iter().copied().fold(f32::INFINITY, f32::min);
+        let max = |a: &[f32; 8]| a.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let b = &self.bounds;
+        Aabb::new(
+            glam::Vec3A::new(min(&b[0]), min(&b[2]), min(&b[4])),
+            glam::Vec3A::new(max(&b[1]), max(&b[3]), max(&b[5])),
+        )
+    }
+
+    /// Makes slot `slot` a leaf of the primitives under BVH2 node `child` (appended to
+    /// `order`, their exact boxes' union as its box) if there are at most
+    /// [`MAX_LEAF_PRIMITIVES`] of them; otherwise leaves the slot and returns false.
+    fn try_leaf(
+        &mut self,
+        slot: usize,
+        bvh2: &Bvh2,
+        child: u32,
+        exact: &[Aabb],
+        scratch: &mut Vec<u32>,
+        order: &mut Vec<u32>,
+    ) -> bool {
+        let Some(primitives) = small_subtree(bvh2, child, scratch) else {
+            return false;
+        };
+        self.child[slot] = LEAF | order.len() as u32;
+        self.count[slot] = primitives as u8;
+        let first = order.len();
+        leaf_primitives(bvh2, child, scratch, order);
+        let bounds = order[first..]
+            .iter()
+            .fold(Aabb::empty(), |b, &p| b.union(&exact[p as usize]));
+        self.set_child_bounds(slot, &bounds);
+        true
+    }
+
+    fn set_child_bounds(&mut self, slot: usize, bounds: &Aabb) {
+        for axis in 0..3 {
+            self.bounds[2 * axis][slot] = bounds.min[axis];
+            self.bounds[2 * axis + 1][slot] = bounds.max[axis];
+        }
+    }
+
     const EMPTY: WideNode = WideNode {
         bounds: [
             [f32::INFINITY; 8],
@@ -62,7 +106,7 @@ impl WideNode {
 
 /// The BVH: node 0 is the root. Leaves index primitives in the tree's leaf order (returned by
 /// [`WideBvh::build`]), which is the order the caller keeps its primitives in.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct WideBvh {
     nodes: Vec<WideNode>,
 }
@@ -79,73 +123,53 @@ impl WideBvh {
     /// Collapses `bvh2` (one primitive per leaf, as both of [`crate::bvh`]'s builders make)
     /// into 8-wide nodes, largest child first: each node starts from one BVH2 node and opens
     /// the child of largest surface area among its inner BVH2 nodes until it has 8 children
-    /// (Wald, Benthin and Boulos 2008). Children left with at most [`MAX_LEAF_PRIMITIVES`]
+    /// (Wald, Benthin and Boulos 2008). Children with at most [`MAX_LEAF_PRIMITIVES`]
     /// primitives become leaves. `exact[p]` is the box of primitive `p` in the space rays are
-    /// given in (not necessarily `bvh2`'s); `bvh2`'s boxes are replaced by those exact ones.
-    /// Returns the tree, the primitives' leaf order and the tree's depth (levels of nodes).
-    pub(crate) fn collapse(bvh2: &mut Bvh2, exact: &[Aabb]) -> (Self, Vec<u32>, usize) {
+    /// given in (not necessarily `bvh2`'s, whose boxes only rank children): the nodes hold
+    /// unions of those exact boxes. Returns the tree, the primitives' leaf order and the tree's
+    /// depth (levels of nodes).
+    ///
+    /// The root's inner children are collapsed in parallel, each into a tree of its own, and
+    /// the trees are then laid out one after the other: the result does not depend on the
+    /// number of threads.
+    pub(crate) fn collapse(bvh2: &Bvh2, exact: &[Aabb]) -> (Self, Vec<u32>, usize) {
+        use rayon::prelude::*;
         if bvh2.nodes.is_empty() {
             return (WideBvh::default(), Vec::new(), 0);
         }
-        let counts = refit_exact(bvh2, exact);
-        let mut nodes = Vec::with_capacity(bvh2.nodes.len() / 4 + 1);
-        nodes.push(WideNode::EMPTY);
+        let mut root = WideNode::EMPTY;
         let mut order = Vec::with_capacity(exact.len());
-        let mut deepest = 0;
-        // (wide node, the BVH2 node it stands for, its level)
-        let mut work = vec![(0u32, 0u32, 1usize)];
-        let mut subtree = Vec::new();
-        while let Some((wide, source, level)) = work.pop() {
-            deepest = deepest.max(level);
-            let mut children = [source; 8];
-            let mut count = 1;
-            while count < 8 {
-                let mut widest: Option<(usize, f32)> = None;
-                for (slot, &child) in children[..count].iter().enumerate() {
-                    let node = &bvh2.nodes[child as usize];
-                    let area = node.aabb().half_area();
-                    if !node.is_leaf() && widest.is_none_or(|(_, a)| area > a) {
-                        widest = Some((slot, area));
-                    }
-                }
-                let Some((slot, _)) = widest else { break };
-                let first = bvh2.nodes[children[slot] as usize].first_index;
-                children[slot] = first;
-                children[count] = first + 1;
-                count += 1;
+        let mut scratch = Vec::new();
+        let mut inner = Vec::new();
+        let (children, count) = widest_first_children(bvh2, 0);
+        for (slot, &child) in children[..count].iter().enumerate() {
+            if !root.try_leaf(slot, bvh2, child, exact, &mut scratch, &mut order) {
+                inner.push((slot, child));
             }
-            let mut node = WideNode::EMPTY;
-            for (slot, &child) in children[..count].iter().enumerate() {
-                let child_node = &bvh2.nodes[child as usize];
-                let primitives = counts[child as usize];
-                if child_node.is_leaf() || primitives <= MAX_LEAF_PRIMITIVES {
-                    node.child[slot] = LEAF | order.len() as u32;
-                    node.count[slot] = primitives as u8;
-                    subtree.push(child);
-                    while let Some(n) = subtree.pop() {
-                        let n = &bvh2.nodes[n as usize];
-                        if n.is_leaf() {
-                            let first = n.first_index as usize;
-                            order.extend_from_slice(
-                                &bvh2.primitive_indices[first..first + n.prim_count as usize],
-                            );
-                        } else {
-                            // Right pushed first: leaves come out left to right.
-                            subtree.extend([n.first_index + 1, n.first_index]);
-                        }
-                    }
-                } else {
-                    node.child[slot] = nodes.len() as u32;
-                    work.push((nodes.len() as u32, child, level + 1));
-                    nodes.push(WideNode::EMPTY);
+        }
+        let parts: Vec<_> = inner
+            .par_iter()
+            .map(|&(_, child)| collapse_subtree(bvh2, child, exact))
+            .collect();
+        let mut nodes = Vec::with_capacity(1 + parts.iter().map(|p| p.nodes.len()).sum::<usize>());
+        nodes.push(root);
+        let mut deepest = 1;
+        for (&(slot, _), part) in inner.iter().zip(parts) {
+            let (node_offset, order_offset) = (nodes.len() as u32, order.len() as u32);
+            nodes[0].child[slot] = node_offset;
+            nodes[0].set_child_bounds(slot, &part.nodes[0].bounds());
+            nodes.extend(part.nodes.into_iter().map(|mut node| {
+                for child in node.child.iter_mut().filter(|c| **c != EMPTY) {
+                    *child += if *child & LEAF != 0 {
+                        order_offset
+                    } else {
+                        node_offset
+                    };
                 }
-                let bounds = child_node.aabb();
-                for axis in 0..3 {
-                    node.bounds[2 * axis][slot] = bounds.min[axis];
-                    node.bounds[2 * axis + 1][slot] = bounds.max[axis];
-                }
-            }
-            nodes[wide as usize] = node;
+                node
+            }));
+            order.extend_from_slice(&part.order);
+            deepest = deepest.max(1 + part.depth);
         }
         (WideBvh { nodes }, order, deepest)
     }
@@ -205,40 +229,112 @@ impl WideBvh {
     }
 }
 
-/// Replaces every box of `bvh2` by the union of the exact boxes of its primitives
-/// (`exact[p]` for primitive `p`) and returns each node's number of primitives.
-fn refit_exact(bvh2: &mut Bvh2, exact: &[Aabb]) -> Vec<u32> {
-    // Pre-order (parents before children), then refit in reverse: children before parents.
-    let mut pre_order = Vec::with_capacity(bvh2.nodes.len());
-    let mut stack = vec![0u32];
+/// The 8-wide tree over one BVH2 subtree: its root is node 0, its leaves index `order`.
+struct Subtree {
+    nodes: Vec<WideNode>,
+    order: Vec<u32>,
+    depth: usize,
+}
+
+/// Up to 8 BVH2 nodes covering the subtree of `source`: starting from it, the inner node of
+/// largest surface area is replaced by its two children until there are 8 or only leaves.
+fn widest_first_children(bvh2: &Bvh2, source: u32) -> ([u32; 8], usize) {
+    let mut children = [source; 8];
+    let mut count = 1;
+    while count < 8 {
+        let mut widest: Option<(usize, f32)> = None;
+        for (slot, &child) in children[..count].iter().enumerate() {
+            let node = &bvh2.nodes[child as usize];
+            let area = node.aabb().half_area();
+            if !node.is_leaf() && widest.is_none_or(|(_, a)| area > a) {
+                widest = Some((slot, area));
+            }
+        }
+        let Some((slot, _)) = widest else { break };
+        let first = bvh2.nodes[children[slot] as usize].first_index;
+        children[slot] = first;
+        children[count] = first + 1;
+        count += 1;
+    }
+    (children, count)
+}
+
+/// Collapses the subtree of BVH2 node `source` (see [`WideBvh::collapse`]).
+fn collapse_subtree(bvh2: &Bvh2, source: u32, exact: &[Aabb]) -> Subtree {
+    let mut nodes = vec![WideNode::EMPTY];
+    // Where each node's box goes in its parent: (parent, slot); the root has none.
+    let mut slot_in_parent = vec![(0u32, 0u8)];
+    let mut order = Vec::new();
+    let mut depth = 0;
+    // (wide node, the BVH2 node it stands for, its level)
+    let mut work = vec![(0u32, source, 1usize)];
+    let mut scratch = Vec::new();
+    while let Some((wide, source, level)) = work.pop() {
+        depth = depth.max(level);
+        let (children, count) = widest_first_children(bvh2, source);
+        let mut node = WideNode::EMPTY;
+        for (slot, &child) in children[..count].iter().enumerate() {
+            if !node.try_leaf(slot, bvh2, child, exact, &mut scratch, &mut order) {
+                node.child[slot] = nodes.len() as u32;
+                work.push((nodes.len() as u32, child, level + 1));
+                slot_in_parent.push((wide, slot as u8));
+                nodes.push(WideNode::EMPTY);
+            }
+        }
+        nodes[wide as usize] = node;
+    }
+    // A node comes after its parent: filling boxes from the last node up gives every inner
+    // child its box before its parent's box is read.
+    for index in (1..nodes.len()).rev() {
+        let bounds = nodes[index].bounds();
+        let (parent, slot) = slot_in_parent[index];
+        nodes[parent as usize].set_child_bounds(slot as usize, &bounds);
+    }
+    Subtree {
+        nodes,
+        order,
+        depth,
+    }
+}
+
+/// The number of primitives under BVH2 node `node` if it is at most [`MAX_LEAF_PRIMITIVES`],
+/// found by visiting at most that many leaves and one fewer inner nodes. `stack` is scratch.
+fn small_subtree(bvh2: &Bvh2, node: u32, stack: &mut Vec<u32>) -> Option<u32> {
+    stack.clear();
+    stack.push(node);
+    let (mut primitives, mut inner) = (0, 0);
     while let Some(n) = stack.pop() {
-        pre_order.push(n);
-        let node = &bvh2.nodes[n as usize];
-        if !node.is_leaf() {
-            stack.extend([node.first_index, node.first_index + 1]);
+        let n = &bvh2.nodes[n as usize];
+        if n.is_leaf() {
+            primitives += n.prim_count;
+            if primitives > MAX_LEAF_PRIMITIVES {
+                return None;
+            }
+        } else {
+            inner += 1;
+            if inner >= MAX_LEAF_PRIMITIVES {
+                return None;
+            }
+            stack.extend([n.first_index + 1, n.first_index]);
         }
     }
-    let mut counts = vec![0u32; bvh2.nodes.len()];
-    for &n in pre_order.iter().rev() {
-        let node = bvh2.nodes[n as usize];
-        let first = node.first_index as usize;
-        let (bounds, count) = if node.is_leaf() {
-            let primitives = &bvh2.primitive_indices[first..first + node.prim_count as usize];
-            let bounds = primitives
-                .iter()
-                .fold(Aabb::empty(), |b, &p| b.union(&exact[p as usize]));
-            (bounds, node.prim_count)
+    Some(primitives)
+}
+
+/// Appends the primitives under BVH2 node `node` to `order`, left to right. `stack` is scratch.
+fn leaf_primitives(bvh2: &Bvh2, node: u32, stack: &mut Vec<u32>, order: &mut Vec<u32>) {
+    stack.clear();
+    stack.push(node);
+    while let Some(n) = stack.pop() {
+        let n = &bvh2.nodes[n as usize];
+        if n.is_leaf() {
+            let first = n.first_index as usize;
+            order.extend_from_slice(&bvh2.primitive_indices[first..first + n.prim_count as usize]);
         } else {
-            let (left, right) = (&bvh2.nodes[first], &bvh2.nodes[first + 1]);
-            (
-                left.aabb().union(right.aabb()),
-                counts[first] + counts[first + 1],
-            )
-        };
-        bvh2.nodes[n as usize].set_aabb(bounds);
-        counts[n as usize] = count;
+            // Right pushed first: leaves come out left to right.
+            stack.extend([n.first_index + 1, n.first_index]);
+        }
     }
-    counts
 }
 
 /// The box of a sphere, rounded outward (`center ± radius` in f32 may round inward).
