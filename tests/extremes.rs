@@ -173,6 +173,33 @@ fn point_and_directional_lights_alone_and_coincident_with_the_surface() {
     }
 }
 
+/// Far from the origin a surface's position carries a rounding error of about 4e-4 (γ₇ · 1000):
+/// the guard against a light lying on the surface must measure the light's height above the
+/// plane (here 1, lit) and not the cosine alone (here 0.01, or 10⁻⁴ per unit of distance).
+#[test]
+fn a_distant_low_light_lights_a_surface_far_from_the_origin() {
+    let (intensity, distance, height) = (1e6f64, 100.0f64, 1.0f64);
+    let text = format!(
+        r#"Scene(
+    camera: (position: (0.3, 1001, -1), target: (0, 1000, 0), fov: 0.01),
+    film: (width: 16, height: 16),
+    sampler: (spp: 2, seed: 9),
+    integrator: (type: "balance", samples: 64),
+    bsdfs: {{ "floor": {DIFFUSE} }},
+    shapes: [
+        (type: "rectangle", bsdf: "floor", transform: (scale: (50, 50, 1), rotate: [(axis: (1, 0, 0), angle: -90)], translate: (0, 1000, 0))),
+    ],
+    emitters: [(type: "point", position: ({distance}, {}, 0), intensity: {intensity})],
+)"#,
+        1000.0 + height
+    );
+    let (_dir, path) = scene_file("far.ron", &text);
+    let results = render_all(&path, None);
+    let d2 = distance * distance + height * height;
+    let expected = 0.5 / std::f64::consts::PI * intensity * (height / d2.sqrt()) / d2;
+    assert_near(&results, expected, "distant low light", &[]);
+}
+
 #[test]
 fn grazing_camera_and_grazing_light() {
     // Camera and light both at cos θ ≈ 1e-4 to the floor.
