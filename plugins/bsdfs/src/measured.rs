@@ -334,6 +334,28 @@ mod tests {
         }
     }
 
+    /// MERL's files store each channel divided by its published scale (1/1500, 1.15/1500,
+    /// 1.66/1500: Matusik et al.'s `BRDFRead.cpp`); checked on bytes written here, not by
+    /// `write_merl`, which shares the constant.
+    #[test]
+    fn merl_channels_are_read_with_their_published_scales() {
+        let stored = [1500.0f64, 1500.0 / 1.15 * 2.0, 1500.0 / 1.66 * 3.0];
+        let mut bytes: Vec<u8> = [90i32, 90, 180]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        for value in stored {
+            for _ in 0..ENTRIES {
+                bytes.extend(value.to_le_bytes());
+            }
+        }
+        let table = MerlTable::parse(&bytes).unwrap();
+        let f = table.lookup(Vec3::new(0.3, 0.1, 0.95).normalize(), Vec3::Z);
+        for (channel, expected) in [f.x, f.y, f.z].into_iter().zip([1.0, 2.0, 3.0]) {
+            assert!((channel - expected).abs() < 1e-5, "{f:?}");
+        }
+    }
+
     #[test]
     fn malformed_files_are_refused() {
         assert!(
