@@ -200,6 +200,56 @@ fn a_distant_low_light_lights_a_surface_far_from_the_origin() {
     assert_near(&results, expected, "distant low light", &[]);
 }
 
+/// Shading normals tilted 60° from a floor's geometric normal must not let light through the
+/// floor: a point light 0.1 below the plane and 1 away, and a directional light arriving from
+/// 5.7° below it, are inside the shading hemisphere (cos 0.81 to the shading normal) but under
+/// the geometric one. Every integrator gives black; the same lights above the floor (the
+/// controls) light it.
+#[test]
+fn shading_normals_let_no_light_through_the_geometric_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sin, cos) = (60f32.to_radians().sin(), 60f32.to_radians().cos());
+    let obj = format!(
+        "v -50 0 -50\nv 50 0 -50\nv 50 0 50\nv -50 0 50\nvn {sin} {cos} 0\nf 1//1 4//1 3//1\nf 1//1 3//1 2//1\n"
+    );
+    std::fs::write(dir.path().join("floor.obj"), obj).unwrap();
+    for (emitter, lit) in [
+        (
+            r#"(type: "point", position: (1, -0.1, 0), intensity: 10)"#,
+            false,
+        ),
+        (
+            r#"(type: "directional", direction: (-1, 0.1, 0), irradiance: 1)"#,
+            false,
+        ),
+        (
+            r#"(type: "point", position: (1, 0.1, 0), intensity: 10)"#,
+            true,
+        ),
+        (
+            r#"(type: "directional", direction: (-1, -0.1, 0), irradiance: 1)"#,
+            true,
+        ),
+    ] {
+        let text = format!(
+            r#"Scene(
+    camera: {TOP_CAMERA},
+    film: (width: 16, height: 16),
+    sampler: (spp: 2, seed: 9),
+    integrator: (type: "balance", samples: 64),
+    bsdfs: {{ "floor": {DIFFUSE} }},
+    shapes: [(type: "obj", file: "floor.obj", bsdf: "floor")],
+    emitters: [{emitter}],
+)"#
+        );
+        let path = dir.path().join("leak.ron");
+        std::fs::write(&path, text).unwrap();
+        for (integrator, mean, _) in render_all(&path, None) {
+            assert_eq!(mean > 0.0, lit, "{emitter}: {integrator} gives {mean}");
+        }
+    }
+}
+
 #[test]
 fn grazing_camera_and_grazing_light() {
     // Camera and light both at cos θ ≈ 1e-4 to the floor.
