@@ -356,6 +356,41 @@ mod tests {
         }
     }
 
+    /// Between entries the table is interpolated trilinearly in MERL's indices (θh through its
+    /// square-root mapping): a table linear in the three indices is reproduced exactly.
+    #[test]
+    fn lookup_interpolates_trilinearly_between_entries() {
+        let linear = |h: usize, d: usize, p: usize| (h + 2 * d + 3 * p) as f64;
+        let mut bytes: Vec<u8> = [90i32, 90, 180]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        for scale in SCALE {
+            for h in 0..THETA_H {
+                for d in 0..THETA_D {
+                    for p in 0..PHI_D {
+                        bytes.extend((linear(h, d, p) / scale).to_le_bytes());
+                    }
+                }
+            }
+        }
+        let table = MerlTable::parse(&bytes).unwrap();
+        for (xh, xd, xp) in [(20.3f32, 10.7f32, 30.2f32), (61.8, 44.1, 120.6)] {
+            let theta_h = (xh / THETA_H as f32).powi(2) * FRAC_PI_2;
+            let theta_d = xd / THETA_D as f32 * FRAC_PI_2;
+            let phi_d = xp / PHI_D as f32 * PI;
+            let (wi, wo) = from_half_diff(theta_h, theta_d, phi_d);
+            let f = table.lookup(wi, wo);
+            let expected = xh + 2.0 * xd + 3.0 * xp;
+            // The directions' round trip moves the indices by about 0.01.
+            assert!((f.x - expected).abs() < 0.05, "{f:?} against {expected}");
+            assert!(
+                (f.x - f.y).abs() < 1e-4 && (f.y - f.z).abs() < 1e-4,
+                "{f:?}"
+            );
+        }
+    }
+
     #[test]
     fn malformed_files_are_refused() {
         assert!(
