@@ -201,9 +201,10 @@ fn a_distant_low_light_lights_a_surface_far_from_the_origin() {
 }
 
 /// Shading normals tilted 60° from a floor's geometric normal must not let light through the
-/// floor: a point light 0.1 below the plane and 1 away, and a directional light arriving from
-/// 5.7° below it, are inside the shading hemisphere (cos 0.81 to the shading normal) but under
-/// the geometric one. Every integrator gives black; the same lights above the floor (the
+/// floor: a point light 0.1 below the plane and 1 away, a directional light arriving from
+/// 5.7° below it (both inside the shading hemisphere, cos 0.81 to the shading normal, but under
+/// the geometric one), and a sphere light below the floor that BSDF samples drawn about the
+/// shading normal reach. Every integrator gives black; the same lights above the floor (the
 /// controls) light it.
 #[test]
 fn shading_normals_let_no_light_through_the_geometric_surface() {
@@ -213,23 +214,21 @@ fn shading_normals_let_no_light_through_the_geometric_surface() {
         "v -50 0 -50\nv 50 0 -50\nv 50 0 50\nv -50 0 50\nvn {sin} {cos} 0\nf 1//1 4//1 3//1\nf 1//1 3//1 2//1\n"
     );
     std::fs::write(dir.path().join("floor.obj"), obj).unwrap();
-    for (emitter, lit) in [
-        (
-            r#"(type: "point", position: (1, -0.1, 0), intensity: 10)"#,
-            false,
-        ),
-        (
-            r#"(type: "directional", direction: (-1, 0.1, 0), irradiance: 1)"#,
-            false,
-        ),
-        (
-            r#"(type: "point", position: (1, 0.1, 0), intensity: 10)"#,
-            true,
-        ),
-        (
-            r#"(type: "directional", direction: (-1, -0.1, 0), irradiance: 1)"#,
-            true,
-        ),
+    let sphere = |height: f32| {
+        format!(
+            r#"(type: "sphere", bsdf: "floor", center: (1, {height}, 0), radius: 0.2, emitter: (type: "area", radiance: 10)),"#
+        )
+    };
+    let point =
+        |height: f32| format!(r#"(type: "point", position: (1, {height}, 0), intensity: 10)"#);
+    let sun = |y: f32| format!(r#"(type: "directional", direction: (-1, {y}, 0), irradiance: 1)"#);
+    for (shape, emitter, lit) in [
+        (String::new(), point(-0.1), false),
+        (String::new(), sun(0.1), false),
+        (sphere(-0.4), String::new(), false),
+        (String::new(), point(0.1), true),
+        (String::new(), sun(-0.1), true),
+        (sphere(0.4), String::new(), true),
     ] {
         let text = format!(
             r#"Scene(
@@ -238,14 +237,18 @@ fn shading_normals_let_no_light_through_the_geometric_surface() {
     sampler: (spp: 2, seed: 9),
     integrator: (type: "balance", samples: 64),
     bsdfs: {{ "floor": {DIFFUSE} }},
-    shapes: [(type: "obj", file: "floor.obj", bsdf: "floor")],
+    shapes: [(type: "obj", file: "floor.obj", bsdf: "floor"), {shape}],
     emitters: [{emitter}],
 )"#
         );
         let path = dir.path().join("leak.ron");
         std::fs::write(&path, text).unwrap();
         for (integrator, mean, _) in render_all(&path, None) {
-            assert_eq!(mean > 0.0, lit, "{emitter}: {integrator} gives {mean}");
+            assert_eq!(
+                mean > 0.0,
+                lit,
+                "{shape}{emitter}: {integrator} gives {mean}"
+            );
         }
     }
 }
