@@ -955,14 +955,17 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
     assert!(lit >= 2, "only {lit} lights reach the plate");
 }
 
-/// The light density of a BSDF sample that an occluder blocks before the light (the α
-/// statistics and `optimal_mis`'s system read it) is the one the sample gets when nothing blocks
-/// it: the light, intersected alone, gives the same density as the real hit. The same BSDF
-/// samples (same stream) are drawn at the same point of one scene with an occluder between the
-/// floor and two lights (a sphere, a mesh rectangle) and of the same scene without it.
+/// A sample that an occluder blocks keeps both densities when a weighting asks for them
+/// (`Densities::Both`: `optimal_mis`'s system reads them): the same samples (same stream) at
+/// the same floor point of one scene with an occluder below two lights (a sphere of radius
+/// above 1, a mesh rectangle) and of the same scene without it have the same densities. For a
+/// BSDF sample blocked before the light, the light's density comes from the light intersected
+/// alone; for a blocked light sample, the BSDF's density is evaluated all the same.
 #[test]
-fn occluded_bsdf_samples_get_the_density_of_the_unoccluded_light() {
-    use lumis::integrators::estimator::{Densities, ShadingPoint, draw_bsdf_samples};
+fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
+    use lumis::integrators::estimator::{
+        Densities, SampleRecord, ShadingPoint, draw_bsdf_samples, draw_light_samples,
+    };
 
     let scene_text = |occluder: &str| {
         format!(
@@ -973,7 +976,7 @@ fn occluded_bsdf_samples_get_the_density_of_the_unoccluded_light() {
     bsdfs: {{ "grey": (type: "diffuse", reflectance: 0.5) }},
     shapes: [
         (type: "rectangle", bsdf: "grey", transform: (scale: (3, 3, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
-        (type: "sphere", bsdf: "grey", radius: 0.4, center: (0.8, 1.5, 0), emitter: (type: "area", radiance: 1)),
+        (type: "sphere", bsdf: "grey", radius: 1.2, center: (1.8, 2.5, 0), emitter: (type: "area", radiance: 1)),
         (type: "rectangle", bsdf: "grey", emitter: (type: "area", radiance: 1),
             transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (-0.8, 1.5, 0))),
         {occluder}
@@ -988,45 +991,43 @@ fn occluded_bsdf_samples_get_the_density_of_the_unoccluded_light() {
     let clear = common::load(&clear_path, &[]).unwrap();
     let blocked = common::load(&blocked_path, &[]).unwrap();
     const COUNT: u32 = 8192;
-    let records = |scene: &lumis::scene::Scene, light: usize| {
+    let records = |scene: &lumis::scene::Scene, light: usize, bsdf_sampling: bool| {
         let ray = lumis::integrator::CameraSample::new(scene, glam::UVec2::new(1, 1), 0).ray;
         let sp = ShadingPoint::new(scene, scene.intersect(&ray).unwrap(), -ray.direction);
         let mut sampler = lumis::sampler::Sampler::new(11, 12, 13);
         let mut records = Vec::new();
-        draw_bsdf_samples(
-            scene,
-            &sp,
-            light,
-            COUNT,
-            &mut sampler,
-            &mut records,
-            Densities::Both,
-        );
+        let draw = if bsdf_sampling {
+            draw_bsdf_samples
+        } else {
+            draw_light_samples
+        };
+        let both = Densities::Both;
+        draw(scene, &sp, light, COUNT, &mut sampler, &mut records, both);
         records
     };
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * a.max(b);
     for light in 0..clear.scene.emitters.len() {
-        let (open, shut) = (records(&clear.scene, light), records(&blocked.scene, light));
-        assert_eq!(open.len(), shut.len());
-        let mut occluded = 0;
-        for (i, (o, s)) in open.iter().zip(&shut).enumerate() {
-            assert_eq!(
-                o.p_bsdf, s.p_bsdf,
-                "light {light}, sample {i}: not the same sample"
-            );
-            // The real hit and the light's own intersection differ by rounding only.
-            let tolerance = 1e-4 * o.p_light.max(s.p_light);
+        for bsdf_sampling in [true, false] {
+            let technique = if bsdf_sampling { "BSDF" } else { "light" };
+            let open: Vec<SampleRecord> = records(&clear.scene, light, bsdf_sampling);
+            let shut = records(&blocked.scene, light, bsdf_sampling);
+            assert_eq!(open.len(), shut.len());
+            let mut occluded = 0;
+            for (i, (o, s)) in open.iter().zip(&shut).enumerate() {
+                // The real hit and the light's own intersection differ by rounding only.
+                assert!(
+                    close(o.p_bsdf, s.p_bsdf) && close(o.p_light, s.p_light),
+                    "light {light}, {technique} sample {i}: densities {o:?} unoccluded, {s:?} \
+                     behind the occluder"
+                );
+                occluded += usize::from(!o.is_black() && s.is_black());
+            }
+            // Several percent of either technique's samples reach each light through the
+            // occluder's place.
             assert!(
-                (o.p_light - s.p_light).abs() <= tolerance,
-                "light {light}, sample {i}: density {} unoccluded, {} behind the occluder",
-                o.p_light,
-                s.p_light
+                occluded > COUNT as usize / 100,
+                "light {light}, {technique}: only {occluded} samples blocked: nothing tested"
             );
-            occluded += usize::from(!o.is_black() && s.is_black());
         }
-        // About 4 % of cosine samples reach each light, half of them through the occluder.
-        assert!(
-            occluded > COUNT as usize / 100,
-            "light {light}: only {occluded} samples blocked: the test tests nothing"
-        );
     }
 }
