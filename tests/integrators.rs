@@ -958,7 +958,8 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
 /// A sample that an occluder blocks keeps both densities when a weighting asks for them
 /// (`Densities::Both`: `optimal_mis`'s system reads them): the same samples (same stream) at
 /// the same floor point of one scene with an occluder below two lights (a sphere of radius
-/// above 1, a mesh rectangle) and of the same scene without it have the same densities. For a
+/// above 1, a mesh rectangle) and of the same scene without it have the same densities (the
+/// scene away from the origin, where a wrong hit position would go unnoticed). For a
 /// BSDF sample blocked before the light, the light's density comes from the light intersected
 /// alone; for a blocked light sample, the BSDF's density is evaluated all the same.
 #[test]
@@ -970,22 +971,22 @@ fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
     let scene_text = |occluder: &str| {
         format!(
             r#"Scene(
-    camera: (position: (0, 1, -1), target: (0, 0, 0), fov: 1),
+    camera: (position: (5, 1, 4), target: (5, 0, 5), fov: 1),
     film: (width: 3, height: 3),
     integrator: (type: "balance"),
     bsdfs: {{ "grey": (type: "diffuse", reflectance: 0.5) }},
     shapes: [
-        (type: "rectangle", bsdf: "grey", transform: (scale: (3, 3, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
-        (type: "sphere", bsdf: "grey", radius: 1.2, center: (1.8, 2.5, 0), emitter: (type: "area", radiance: 1)),
+        (type: "rectangle", bsdf: "grey", transform: (scale: (3, 3, 1), rotate: [(axis: (1, 0, 0), angle: -90)], translate: (5, 0, 5))),
+        (type: "sphere", bsdf: "grey", radius: 1.2, center: (6.8, 2.5, 5), emitter: (type: "area", radiance: 1)),
         (type: "rectangle", bsdf: "grey", emitter: (type: "area", radiance: 1),
-            transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (-0.8, 1.5, 0))),
+            transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (4.2, 1.5, 5))),
         {occluder}
     ],
 )"#
         )
     };
     let occluder = r#"(type: "rectangle", bsdf: "grey",
-            transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (0, 0.9, 0)))"#;
+            transform: (scale: (0.5, 0.5, 1), rotate: [(axis: (1, 0, 0), angle: 90)], translate: (5, 0.9, 5)))"#;
     let (_clear_dir, clear_path) = scene_file("clear.ron", &scene_text(""));
     let (_blocked_dir, blocked_path) = scene_file("blocked.ron", &scene_text(occluder));
     let clear = common::load(&clear_path, &[]).unwrap();
