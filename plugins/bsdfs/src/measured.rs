@@ -334,22 +334,27 @@ mod tests {
         }
     }
 
+    /// A MERL file's bytes: the header, then `stored(channel, entry)` for each channel.
+    fn merl_bytes(stored: impl Fn(usize, usize) -> f64) -> Vec<u8> {
+        let mut bytes: Vec<u8> = [THETA_H as i32, THETA_D as i32, PHI_D as i32]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        for channel in 0..3 {
+            for entry in 0..ENTRIES {
+                bytes.extend(stored(channel, entry).to_le_bytes());
+            }
+        }
+        bytes
+    }
+
     /// MERL's files store each channel divided by its published scale (1/1500, 1.15/1500,
     /// 1.66/1500: Matusik et al.'s `BRDFRead.cpp`); checked on bytes written here, not by
     /// `write_merl`, which shares the constant.
     #[test]
     fn merl_channels_are_read_with_their_published_scales() {
         let stored = [1500.0f64, 1500.0 / 1.15 * 2.0, 1500.0 / 1.66 * 3.0];
-        let mut bytes: Vec<u8> = [90i32, 90, 180]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        for value in stored {
-            for _ in 0..ENTRIES {
-                bytes.extend(value.to_le_bytes());
-            }
-        }
-        let table = MerlTable::parse(&bytes).unwrap();
+        let table = MerlTable::parse(&merl_bytes(|channel, _| stored[channel])).unwrap();
         let f = table.lookup(Vec3::new(0.3, 0.1, 0.95).normalize(), Vec3::Z);
         for (channel, expected) in [f.x, f.y, f.z].into_iter().zip([1.0, 2.0, 3.0]) {
             assert!((channel - expected).abs() < 1e-5, "{f:?}");
@@ -360,20 +365,12 @@ mod tests {
     /// square-root mapping): a table linear in the three indices is reproduced exactly.
     #[test]
     fn lookup_interpolates_trilinearly_between_entries() {
-        let linear = |h: usize, d: usize, p: usize| (h + 2 * d + 3 * p) as f64;
-        let mut bytes: Vec<u8> = [90i32, 90, 180]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        for scale in SCALE {
-            for h in 0..THETA_H {
-                for d in 0..THETA_D {
-                    for p in 0..PHI_D {
-                        bytes.extend((linear(h, d, p) / scale).to_le_bytes());
-                    }
-                }
-            }
-        }
+        // Entry i is index(h, d, p) = p + PHI_D · (d + THETA_D · h).
+        let linear = |i: usize| {
+            let (h, d, p) = (i / (THETA_D * PHI_D), i / PHI_D % THETA_D, i % PHI_D);
+            (h + 2 * d + 3 * p) as f64
+        };
+        let bytes = merl_bytes(|channel, i| linear(i) / SCALE[channel]);
         let table = MerlTable::parse(&bytes).unwrap();
         for (xh, xd, xp) in [(20.3f32, 10.7f32, 30.2f32), (61.8, 44.1, 120.6)] {
             let theta_h = (xh / THETA_H as f32).powi(2) * FRAC_PI_2;
