@@ -576,8 +576,9 @@ fn lobe_sampling_turns_with_the_incident_direction() {
                 continue;
             };
             let expected = turn(a.wi, psi);
+            // f32 rounding of the two paths: at most 5e-7 over these samples.
             assert!(
-                (b.wi - expected).length() < 1e-3,
+                (b.wi - expected).length() < 1e-5,
                 "{name}: ωo {wo}, ψ {psi}: {} against {expected}",
                 b.wi
             );
