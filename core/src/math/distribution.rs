@@ -298,6 +298,12 @@ impl Distribution2D {
         (col, row, glam::Vec2::new(ux, uy), pdf)
     }
 
+    /// Density of cell (`col`, `row`) (with respect to area on the unit square).
+    #[inline]
+    pub fn cell_pdf(&self, col: usize, row: usize) -> f32 {
+        self.cells[row * self.nx + col].pdf
+    }
+
     /// Density at a point of [0, 1]² (with respect to area on the unit square).
     #[inline]
     pub fn pdf(&self, p: glam::Vec2) -> f32 {

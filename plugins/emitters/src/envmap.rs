@@ -97,23 +97,35 @@ impl Default for MapSettings {
 pub struct EnvironmentMap {
     width: usize,
     height: usize,
-    pixels: Vec<Rgb>,
+    /// Row-major, top row first.
+    texels: Vec<Texel>,
     sampling: Sampling,
     /// Rotation about +y (with the orientation's half turn), as (cos, sin).
     rotation: (f32, f32),
 }
 
-/// The tables that sampling and `pdf` read; `None` for a black map, which then is never sampled.
+/// A pixel's radiance, and beside it the number `pdf` reads at the same pixel: a direction's
+/// `eval` and `pdf_direction` (and a light sample's radiance and density) read one cache line of
+/// a map that is far larger than the caches, not one in each of two tables.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+struct Texel {
+    radiance: Rgb,
+    /// Nearest: the density over (u, v) of the pixel's cell. Bilinear: the sampling weight at
+    /// the pixel's sample (luminance × sin θ). Zero for a black map.
+    density: f32,
+}
+
+/// The tables that sampling reads; `None` for a black map, which then is never sampled.
 enum Sampling {
     /// Over (u, v), one cell per pixel.
     Nearest(Option<Distribution2D>),
     Bilinear(Option<BilinearWarp>),
 }
 
-/// The piecewise-bilinear density over the W × (H − 1) patches between pixel samples.
+/// The piecewise-bilinear density over the W × (H − 1) patches between pixel samples, whose
+/// corner weights are the texels' `density`.
 struct BilinearWarp {
-    /// luminance × sin θ at each pixel's sample, row-major.
-    weights: Vec<f32>,
     /// Patches by their integrals: patch (i, j) has corners (i, j), (i + 1 mod W, j),
     /// (i, j + 1), (i + 1 mod W, j + 1).
     patches: Distribution2D,
@@ -206,16 +218,24 @@ impl EnvironmentMap {
         if settings.compensation {
             compensate(&mut sampled, &row_sin, width);
         }
-        let sampling = match settings.interpolation {
+        // luminance × sin θ at each pixel (nearest: its cell; bilinear: its sample).
+        let weights: Vec<f32> = (0..height)
+            .flat_map(|y| {
+                let sampled = &sampled;
+                let sin_theta = row_sin[y];
+                (0..width).map(move |x| sampled[y * width + x] * sin_theta)
+            })
+            .collect();
+        let (sampling, densities) = match settings.interpolation {
             Interpolation::Nearest => {
-                let weights: Vec<f32> = (0..height)
-                    .flat_map(|y| {
-                        let sampled = &sampled;
-                        let sin_theta = row_sin[y];
-                        (0..width).map(move |x| sampled[y * width + x] * sin_theta)
-                    })
-                    .collect();
-                Sampling::Nearest(Distribution2D::new(&weights, width, height))
+                let distribution = Distribution2D::new(&weights, width, height);
+                let densities = match &distribution {
+                    Some(d) => (0..height)
+                        .flat_map(|y| (0..width).map(move |x| d.cell_pdf(x, y)))
+                        .collect(),
+                    None => vec![0.0; width * height],
+                };
+                (Sampling::Nearest(distribution), densities)
             }
             Interpolation::Bilinear => {
                 if height < 2 {
@@ -224,9 +244,17 @@ impl EnvironmentMap {
                          and last rows sit on the poles); this one is {width}x{height}"
                     ));
                 }
-                Sampling::Bilinear(BilinearWarp::new(&sampled, &row_sin, width))
+                (
+                    Sampling::Bilinear(BilinearWarp::new(&weights, width)),
+                    weights,
+                )
             }
         };
+        let texels = pixels
+            .into_iter()
+            .zip(densities)
+            .map(|(radiance, density)| Texel { radiance, density })
+            .collect();
         let (sin, cos) = settings.rotation_degrees.to_radians().sin_cos();
         // Mitsuba's orientation is a half turn more: exactly (−cos, −sin).
         let rotation = match settings.orientation {
@@ -236,7 +264,7 @@ impl EnvironmentMap {
         Ok(EnvironmentMap {
             width,
             height,
-            pixels,
+            texels,
             sampling,
             rotation,
         })
@@ -276,16 +304,33 @@ impl EnvironmentMap {
     /// Solid-angle density of the direction at map coordinates `uv`.
     #[inline]
     fn pdf_at(&self, uv: Vec2, sin_theta: f32) -> f32 {
-        if sin_theta <= 0.0 {
-            return 0.0;
-        }
         let pdf_uv = match &self.sampling {
-            Sampling::Nearest(Some(d)) => d.pdf(uv),
+            Sampling::Nearest(Some(_)) => self.texels[self.nearest_index(uv)].density,
             Sampling::Bilinear(Some(warp)) => self.bilinear_pdf_uv(warp, uv),
             Sampling::Nearest(None) | Sampling::Bilinear(None) => return 0.0,
         };
-        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
-        if pdf.is_finite() { pdf.max(0.0) } else { 0.0 }
+        solid_angle_pdf(pdf_uv, sin_theta)
+    }
+
+    /// Radiance and solid-angle density at map coordinates `uv`, from one read of the texels.
+    #[inline]
+    fn radiance_and_pdf(&self, uv: Vec2, sin_theta: f32) -> (Rgb, f32) {
+        match &self.sampling {
+            Sampling::Nearest(Some(_)) => {
+                let texel = self.texels[self.nearest_index(uv)];
+                (texel.radiance, solid_angle_pdf(texel.density, sin_theta))
+            }
+            Sampling::Bilinear(Some(warp)) => self.bilinear_radiance_and_pdf(warp, uv, sin_theta),
+            Sampling::Nearest(None) | Sampling::Bilinear(None) => (self.lookup(uv), 0.0),
+        }
+    }
+
+    /// The pixel whose cell contains map coordinates `uv` (nearest placement).
+    #[inline]
+    fn nearest_index(&self, uv: Vec2) -> usize {
+        let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
+        let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
+        y * self.width + x
     }
 
     /// The four pixel samples around map coordinates `uv` (bilinear placement).
@@ -316,11 +361,7 @@ impl EnvironmentMap {
     #[inline]
     fn lookup(&self, uv: Vec2) -> Rgb {
         match self.sampling {
-            Sampling::Nearest(_) => {
-                let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
-                let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
-                self.pixels[y * self.width + x]
-            }
+            Sampling::Nearest(_) => self.texels[self.nearest_index(uv)].radiance,
             Sampling::Bilinear(_) => self.bilinear_lookup(uv),
         }
     }
@@ -338,12 +379,27 @@ impl EnvironmentMap {
 
     #[inline(never)]
     fn bilinear_pdf_uv(&self, warp: &BilinearWarp, uv: Vec2) -> f32 {
-        self.corners(uv).lerp(|i| warp.weights[i]) / warp.integral
+        self.corners(uv).lerp(|i| self.texels[i].density) / warp.integral
     }
 
     #[inline(never)]
     fn bilinear_lookup(&self, uv: Vec2) -> Rgb {
-        self.corners(uv).lerp(|i| self.pixels[i])
+        self.corners(uv).lerp(|i| self.texels[i].radiance)
+    }
+
+    #[inline(never)]
+    fn bilinear_radiance_and_pdf(
+        &self,
+        warp: &BilinearWarp,
+        uv: Vec2,
+        sin_theta: f32,
+    ) -> (Rgb, f32) {
+        let corners = self.corners(uv);
+        let pdf_uv = corners.lerp(|i| self.texels[i].density) / warp.integral;
+        (
+            corners.lerp(|i| self.texels[i].radiance),
+            solid_angle_pdf(pdf_uv, sin_theta),
+        )
     }
 
     #[inline(never)]
@@ -351,7 +407,7 @@ impl EnvironmentMap {
         let (col, row, within, _) = warp.patches.sample_cell(u);
         let (w, h) = (self.width, self.height);
         let col1 = if col + 1 == w { 0 } else { col + 1 };
-        let weight = |i: usize, j: usize| warp.weights[j * w + i];
+        let weight = |i: usize, j: usize| self.texels[j * w + i].density;
         let (w00, w10) = (weight(col, row), weight(col1, row));
         let (w01, w11) = (weight(col, row + 1), weight(col1, row + 1));
         // The marginal in y is linear, then the conditional in x given y.
@@ -367,6 +423,17 @@ impl EnvironmentMap {
         }
         Vec2::new(x, (row as f32 + fy) / (h - 1) as f32)
     }
+}
+
+/// Solid-angle density of a direction with density `pdf_uv` over (u, v) and polar sine
+/// `sin_theta` (zero at the poles, where the map's parametrisation degenerates).
+#[inline]
+fn solid_angle_pdf(pdf_uv: f32, sin_theta: f32) -> f32 {
+    if sin_theta <= 0.0 {
+        return 0.0;
+    }
+    let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
+    if pdf.is_finite() { pdf.max(0.0) } else { 0.0 }
 }
 
 /// Replaces the luminances `sampled` (rows of `width`, row `y` at sin θ = `row_sin[y]`) by
@@ -387,15 +454,9 @@ fn compensate(sampled: &mut [f32], row_sin: &[f32], width: usize) {
 }
 
 impl BilinearWarp {
-    /// From the luminances to sample by (`sampled`, rows of `width`) and each row's sin θ.
-    fn new(sampled: &[f32], row_sin: &[f32], width: usize) -> Option<Self> {
-        let height = row_sin.len();
-        let weights: Vec<f32> = (0..height)
-            .flat_map(|y| {
-                let sin_theta = row_sin[y];
-                (0..width).map(move |x| sampled[y * width + x] * sin_theta)
-            })
-            .collect();
+    /// From the weights at the pixels' samples (luminance × sin θ, rows of `width`).
+    fn new(weights: &[f32], width: usize) -> Option<Self> {
+        let height = weights.len() / width;
         let patch_weights: Vec<f32> = (0..height - 1)
             .flat_map(|j| {
                 let weights = &weights;
@@ -410,7 +471,6 @@ impl BilinearWarp {
             patch_weights.iter().map(|&w| w as f64).sum::<f64>() / patch_weights.len() as f64;
         let patches = Distribution2D::new(&patch_weights, width, height - 1)?;
         Some(BilinearWarp {
-            weights,
             patches,
             integral: integral as f32,
         })
@@ -419,11 +479,26 @@ impl BilinearWarp {
 
 impl Emitter for EnvironmentMap {
     fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let wi = self.to_direction(self.sample_uv(u)?);
+        let sampled = self.sample_uv(u)?;
+        // Nearest: the sampled pixel's texel is read before the trigonometry below, so that its
+        // cache miss (a map is larger than the caches) overlaps that work.
+        let early = match self.sampling {
+            Sampling::Nearest(_) => {
+                let index = self.nearest_index(sampled);
+                Some((index, std::hint::black_box(self.texels[index])))
+            }
+            Sampling::Bilinear(_) => None,
+        };
+        let wi = self.to_direction(sampled);
         // Radiance and density are those of the direction as `eval` and `pdf_direction` see it
         // (on a pixel's edge, rounding can move it into the neighbour), from one conversion.
         let (uv, sin_theta) = self.to_uv(wi);
-        let pdf = self.pdf_at(uv, sin_theta);
+        let (radiance, pdf) = match early {
+            Some((index, texel)) if index == self.nearest_index(uv) => {
+                (texel.radiance, solid_angle_pdf(texel.density, sin_theta))
+            }
+            _ => self.radiance_and_pdf(uv, sin_theta),
+        };
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -431,7 +506,7 @@ impl Emitter for EnvironmentMap {
             wi,
             position: None,
             pdf,
-            radiance: self.lookup(uv),
+            radiance,
         })
     }
 
