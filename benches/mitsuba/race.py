@@ -43,6 +43,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
+# The paired-ratio interval of the interleaved rounds, as benches/ab.py computes it.
+sys.path.insert(0, str(HERE.parent))
+from ab import fmt_ratio, ratio_interval  # noqa: E402
 SHARED_DRAGON = REPO.parent / "shared" / "data" / "meshes" / "dragon_res2.glb"
 STUDIO = REPO / "scenes" / "envmaps" / "studio.exr"
 
@@ -573,24 +576,27 @@ def main():
                         times.setdefault(f"{v} {config}", []).append(t)
             med = {k: statistics.median(x["time"] for x in v) for k, v in times.items()}
             proc = statistics.median(x["process"] for x in times["lumis"])
+            lumis_times = [x["time"] for x in times["lumis"]]
             for k in med:
                 extra = (f"{proc:8.3f} (whole process)" if k == "lumis" else
                          f"{first[k][0]:.3f} load + {first[k][1]:.3f} first render")
-                table.append((name, k, med[k], med[k] / med["lumis"], extra))
+                ratio = ratio_interval([x["time"] for x in times[k]], lumis_times)
+                table.append((name, k, med[k], fmt_ratio(*ratio), extra))
     finally:
         for wk in workers.values():
             wk.close()
 
     print()
     print(f"Median render time over {args.timing_runs} interleaved runs, loading and JIT "
-          f"compilation excluded; ratio = time / lumis time. 'With loading': lumis's whole "
+          f"compilation excluded; ratio = time / lumis time, the geometric mean of the rounds' "
+          f"ratios with its 95 % confidence interval. 'With loading': lumis's whole "
           f"process (parse, glTF, BVH, render, EXR and PNG written); Mitsuba's scene loading "
           f"and first render (llvm: with tracing and kernel compilation).")
     print(f"{'scene':8} {'renderer (Mitsuba direct: emitter/bsdf samples)':40} {'time s':>8} "
-          f"{'ratio':>7}  with loading, s")
+          f"{'ratio [95 % CI]':>23}  with loading, s")
     for name, k, t, ratio, extra in table:
         label = "lumis power, samples 2" if k == "lumis" else f"Mitsuba {k}"
-        print(f"{name:8} {label:40} {t:8.3f} {ratio:7.2f}  {extra}")
+        print(f"{name:8} {label:40} {t:8.3f} {ratio:>23}  {extra}")
     if not ok_all:
         print("\nSome images DISAGREE: the timings above compare different images.")
         sys.exit(1)
