@@ -274,7 +274,7 @@ impl Bsdf for Measured {
         }
         let wi = match &self.sampling[elevation_band(wo)] {
             Some(d) if u_lobe >= DEFENSIVE => {
-                let (p, _) = d.sample(u);
+                let p = d.sample(u);
                 let cos = p.y;
                 let sin = (1.0 - cos * cos).max(0.0).sqrt();
                 let phi = p.x * TAU + wo.y.atan2(wo.x);

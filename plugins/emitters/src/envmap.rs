@@ -370,7 +370,7 @@ impl EnvironmentMap {
     #[inline]
     fn sample_uv(&self, u: Vec2) -> Option<Vec2> {
         match &self.sampling {
-            Sampling::Nearest(d) => Some(d.as_ref()?.sample(u).0),
+            Sampling::Nearest(d) => Some(d.as_ref()?.sample(u)),
             Sampling::Bilinear(warp) => Some(self.bilinear_sample_uv(warp.as_ref()?, u)),
         }
     }
@@ -404,7 +404,7 @@ impl EnvironmentMap {
 
     #[inline(never)]
     fn bilinear_sample_uv(&self, warp: &BilinearWarp, u: Vec2) -> Vec2 {
-        let (col, row, within, _) = warp.patches.sample_cell(u);
+        let (col, row, within) = warp.patches.sample_cell(u);
         let (w, h) = (self.width, self.height);
         let col1 = if col + 1 == w { 0 } else { col + 1 };
         let weight = |i: usize, j: usize| self.texels[j * w + i].density;
