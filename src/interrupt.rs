@@ -35,9 +35,8 @@ pub fn signal_name() -> &'static str {
 /// What the watcher does with each signal received.
 fn on_interrupt(cancel: &AtomicBool, signal: i32) {
     if cancel.swap(true, Ordering::Relaxed) {
-        lumis::image_io::remove_temporaries();
         eprintln!("interrupted again: exiting at once");
-        std::process::exit(128 + signal);
+        lumis::image_io::exit_removing_temporaries(128 + signal);
     }
     SIGNAL.store(signal, Ordering::Relaxed);
     eprintln!("interrupted: finishing what is in progress (interrupt again to exit at once)");

@@ -30,23 +30,42 @@ fn output_error(path: &Path, reason: impl ToString) -> OutputError {
 }
 
 /// Temporary files being written, so that an exit that skips destructors (a second Ctrl-C)
-/// can remove them first ([`remove_temporaries`]).
+/// can remove them first ([`exit_removing_temporaries`]). A temporary file is created with
+/// this lock held, so that none exists unlisted.
 static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-fn forget_temporary(path: &Path) {
-    if let Ok(mut list) = TEMPORARIES.lock() {
-        list.retain(|p| p != path);
-    }
+fn temporaries() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // The list stays valid if a writer panicked while holding it.
+    TEMPORARIES
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// Removes every temporary output file still being written. For a program about to exit
-/// without running destructors.
-pub fn remove_temporaries() {
-    if let Ok(list) = TEMPORARIES.lock() {
-        for path in list.iter() {
-            let _ = std::fs::remove_file(path);
-        }
+/// A new temporary file in `dir`, listed in [`TEMPORARIES`] from its creation on.
+fn listed_temporary(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let mut list = temporaries();
+    let tmp = tempfile::Builder::new()
+        .prefix(".lumis-")
+        .suffix(".tmp")
+        .tempfile_in(dir)?;
+    list.push(tmp.path().to_path_buf());
+    Ok(tmp)
+}
+
+fn forget_temporary(path: &Path) {
+    temporaries().retain(|p| p != path);
+}
+
+/// Removes every temporary output file still being written and exits with `code`, without
+/// running destructors. The list stays locked until the exit, so that no other thread creates
+/// a temporary file after the removal (one file of several being written, e.g. the PNG after
+/// the EXR).
+pub fn exit_removing_temporaries(code: i32) -> ! {
+    let list = temporaries();
+    for path in list.iter() {
+        let _ = std::fs::remove_file(path);
     }
+    std::process::exit(code)
 }
 
 /// The directory an output file goes to.
@@ -65,12 +84,12 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     }
     let dir = output_dir(path);
     std::fs::create_dir_all(dir).map_err(|e| output_error(path, e))?;
-    tempfile::Builder::new()
-        .prefix(".lumis-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map(drop)
-        .map_err(|e| output_error(path, e))
+    let tmp = listed_temporary(dir).map_err(|e| output_error(path, e))?;
+    // Removed before it leaves the list: an exit in between finds it gone, not unlisted.
+    let temporary = tmp.path().to_path_buf();
+    drop(tmp);
+    forget_temporary(&temporary);
+    Ok(())
 }
 
 /// Writes what a closure writes to a file.
@@ -90,17 +109,12 @@ pub fn write_all_atomically(files: Vec<(&Path, FileWriter<'_>)>) -> Result<(), O
     for (path, write) in files {
         let dir = output_dir(path);
         std::fs::create_dir_all(dir).map_err(|e| output_error(path, e))?;
-        let mut tmp = tempfile::Builder::new()
-            .prefix(".lumis-")
-            .suffix(".tmp")
-            .tempfile_in(dir)
-            .map_err(|e| output_error(path, e))?;
-        if let Ok(mut list) = TEMPORARIES.lock() {
-            list.push(tmp.path().to_path_buf());
-        }
+        let mut tmp = listed_temporary(dir).map_err(|e| output_error(path, e))?;
         let result = write_temporary(&mut tmp, write).map_err(|e| output_error(path, e));
         if let Err(e) = result {
-            forget_temporary(tmp.path());
+            let temporary = tmp.path().to_path_buf();
+            drop(tmp);
+            forget_temporary(&temporary);
             return Err(e);
         }
         written.push((path, tmp));
