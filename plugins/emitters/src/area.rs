@@ -86,13 +86,14 @@ const MEETS_TOLERANCE: f32 = 1024.0 * (f32::EPSILON / 2.0);
 
 /// Whether the ray from `origin` toward the point with barycentrics `b` on a triangle of `size`
 /// (`to` = the point − `origin`, `cos` = |cos| of the angle at the triangle), traced along the
-/// rounded direction, certainly meets it in the watertight test, so that the test can be
-/// skipped: the point lies deeper inside than rounding can move it, and far enough from the
+/// rounded direction, meets it in the watertight test by a margin wide enough to skip the test
+/// (a first-order error estimate with a constant set by a test, not a proof): the point lies deeper inside than rounding can move it, and far enough from the
 /// origin that the test's distance bound cannot reject it. The bound: the point, the direction
 /// and the test's edge functions are each off by a few units of roundoff of the lengths
 /// involved (the triangle, the distance, the coordinates of both ends), which in barycentrics
 /// is divided by the triangle's smallest height, and by `cos`, since a grazing ray spreads an
-/// error over the surface; [`MEETS_TOLERANCE`] times their sum leaves a wide margin. `false`
+/// error over the surface; [`MEETS_TOLERANCE`] times their sum is 21 times the smallest
+/// constant with which `points_deemed_surely_met_are_met` finds no miss. `false`
 /// leaves the decision to the exact test.
 #[inline]
 fn surely_meets(b: [f32; 3], to: Vec3, origin: Vec3, cos: f32, size: TriangleSize) -> bool {
