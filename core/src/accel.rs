@@ -394,7 +394,18 @@ pub struct Geometry {
     /// Primitives in BVH leaf order.
     primitives: Vec<Primitive>,
     bvh: WideBvh,
+    /// Per shape: its bounding box, padded for [`Geometry::may_meet`] (empty for a shape with no
+    /// primitive).
+    shape_boxes: Vec<[Vec3; 2]>,
 }
+
+/// [`Geometry::may_meet`]'s margins: each shape's box grows by `MAY_MEET_MARGIN` of its largest
+/// extent and `MAY_MEET_COORDINATE_MARGIN` of its largest coordinate, and the ray's interval
+/// through it by `MAY_MEET_MARGIN` of the distances. The hit tests' rounding is a few units of
+/// 2^-24 of the same quantities, so the test stays conservative by a factor of a thousand or
+/// more, and culls almost as a tight box would.
+const MAY_MEET_MARGIN: f32 = 1.0 / 1024.0;
+const MAY_MEET_COORDINATE_MARGIN: f32 = 1.0 / 16384.0;
 
 /// Size (largest extent) the scene has in the BVH's space, a power of two.
 const BVH_SCENE_SIZE_LOG2: i32 = 10;
@@ -454,13 +465,55 @@ impl Geometry {
         let boxes: Vec<Aabb> = prims.par_iter().map(Boundable::aabb).collect();
         let total = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
         let scale = bvh_scale(&total);
+        let mut shape_boxes = vec![[Vec3::INFINITY, Vec3::NEG_INFINITY]; shapes.len()];
+        for (prim, bounds) in prims.iter().zip(&boxes) {
+            let (Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. }) = prim;
+            let [lo, hi] = &mut shape_boxes[*shape as usize];
+            *lo = lo.min(bounds.min.into());
+            *hi = hi.max(bounds.max.into());
+        }
+        for [lo, hi] in shape_boxes
+            .iter_mut()
+            .filter(|[lo, hi]| lo.cmple(*hi).all())
+        {
+            let pad = Vec3::splat(
+                (*hi - *lo).max_element() * MAY_MEET_MARGIN
+                    + lo.abs().max(hi.abs()).max_element() * MAY_MEET_COORDINATE_MARGIN,
+            );
+            (*lo, *hi) = (*lo - pad, *hi + pad);
+        }
         let (bvh, order) = WideBvh::build(&boxes, scale);
         let primitives = order.par_iter().map(|&i| prims[i as usize]).collect();
         Geometry {
             shapes,
             primitives,
             bvh,
+            shape_boxes,
         }
+    }
+
+    /// Whether `ray` may meet shape `shape` before its `t_max`: false only when it passes clear
+    /// of the shape's padded bounding box, so that a query about one shape (does a BSDF ray
+    /// drawn for a light reach it?) can skip the traversal for most rays. Never false for a ray
+    /// on which [`Geometry::first_hit`] or [`Geometry::occluded`] could find that shape.
+    pub fn may_meet(&self, ray: &Ray, shape: u32) -> bool {
+        let [lo, hi] = self.shape_boxes[shape as usize];
+        let (mut t_near, mut t_far) = (0.0f32, ray.t_max);
+        for axis in 0..3 {
+            let (o, inv) = (ray.origin[axis], 1.0 / ray.direction[axis]);
+            if !inv.is_finite() {
+                // Parallel to the slab (or nearly: 1/d overflows): inside it or never.
+                if !(lo[axis] <= o && o <= hi[axis]) {
+                    return false;
+                }
+                continue;
+            }
+            let (a, b) = ((lo[axis] - o) * inv, (hi[axis] - o) * inv);
+            let (near, far) = if inv < 0.0 { (b, a) } else { (a, b) };
+            t_near = t_near.max(near);
+            t_far = t_far.min(far);
+        }
+        t_near * (1.0 - MAY_MEET_MARGIN) <= t_far * (1.0 + MAY_MEET_MARGIN)
     }
 
     pub fn shapes(&self) -> &[ShapeGeometry] {
@@ -684,6 +737,169 @@ mod tests {
                 },
             )
             .unwrap();
+    }
+
+    /// [`Geometry::may_meet`] on random scenes and rays: true for every shape the ray hits
+    /// (any of its primitives, not only the closest one).
+    #[test]
+    fn may_meet_holds_for_every_shape_hit() {
+        let mut runner = TestRunner::new(Config {
+            cases: 64,
+            ..Config::default()
+        });
+        let culled = Cell::new(0usize);
+        runner
+            .run(
+                &(scene(), prop::collection::vec(ray(), 200)),
+                |(shapes, rays)| {
+                    let geometry = Geometry::new(shapes);
+                    for ray in &rays {
+                        for shape in 0..geometry.shapes.len() as u32 {
+                            let hit = geometry.primitives.iter().any(|prim| match prim {
+                                Primitive::Triangle { p, shape: s, .. } => {
+                                    let shear = RayShear::new(ray.direction);
+                                    *s == shape
+                                        && intersect_triangle(ray, &shear, ray.t_max, p)
+                                            .is_some_and(|(t, _)| t < ray.t_max)
+                                }
+                                Primitive::Sphere { sphere, shape: s } => {
+                                    *s == shape
+                                        && intersect_sphere(ray, ray.t_max, sphere).is_some()
+                                }
+                            });
+                            let may = geometry.may_meet(ray, shape);
+                            prop_assert!(may || !hit, "shape {} hit by {:?}", shape, ray);
+                            culled.set(culled.get() + usize::from(!may));
+                        }
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+        // The test has power only if the cull culls: most random rays pass clear of a shape.
+        let culled = culled.get();
+        assert!(culled > 64 * 200, "only {culled} shape–ray pairs culled");
+    }
+
+    /// [`Geometry::may_meet`] where rounding decides: rays toward points within 1e-7 to 1e-3 of
+    /// a triangle's edges and vertices, on both sides, and rays grazing a sphere, from 1e-3 to
+    /// 1e4 times the shape's size, at elevations down to 1e-5 rad, at coordinates up to 1e4.
+    /// Every ray the watertight test (or the sphere test) lets hit is one `may_meet` keeps; and
+    /// rays passing 1 % of the size beside the shape are culled.
+    #[test]
+    fn may_meet_keeps_rays_that_hit_within_rounding() {
+        let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
+        let (mut hits, mut beside, mut culled_beside) = (0u32, 0u32, 0u32);
+        let triangles = [
+            [Vec3::ZERO, Vec3::X, Vec3::Y],
+            [
+                Vec3::new(-1.0, 0.0, 0.0),
+                Vec3::X,
+                Vec3::new(0.0, 1e-4, 0.0),
+            ],
+            [
+                Vec3::new(1e4, 2e4, -3e4),
+                Vec3::new(1e4 + 3.0, 2e4, -3e4),
+                Vec3::new(1e4, 2e4 + 2.0, -3e4 + 1.0),
+            ],
+            [
+                Vec3::new(-500.0, 0.0, -500.0),
+                Vec3::new(500.0, 0.0, -500.0),
+                Vec3::new(0.0, 0.0, 700.0),
+            ],
+        ];
+        for p in triangles {
+            let mut mesh = Mesh::default();
+            mesh.positions.extend(p);
+            mesh.indices.push([0, 1, 2]);
+            let geometry = Geometry::new(vec![ShapeGeometry::Mesh(mesh)]);
+            let size = (p[1] - p[0]).length().max((p[2] - p[0]).length());
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+            let frame = crate::math::Frame::from_normal(normal);
+            for case in 0..20_000 {
+                let (u, v, w) = (sampler.next_2d(), sampler.next_2d(), sampler.next_2d());
+                // A point on an edge (or at a vertex), moved off it by ±1e-7 to 1e-3 of the size,
+                // in the triangle's plane.
+                let (a, b) = (p[case % 3], p[(case + 1) % 3]);
+                let on_edge = if case % 4 == 0 { a } else { a + u.x * (b - a) };
+                let tiny = 10f32.powf(-7.0 + 4.0 * u.y) * size * (w.x - 0.5).signum();
+                let sideways = normal.cross(b - a).normalize() * tiny;
+                let target = on_edge + sideways;
+                let grazing = case % 3 == 0;
+                let elevation = if grazing {
+                    10f32.powf(-5.0 + 3.0 * v.x)
+                } else {
+                    0.05 + 1.5 * v.x
+                };
+                let azimuth = std::f32::consts::TAU * v.y;
+                let local = Vec3::new(
+                    elevation.cos() * azimuth.cos(),
+                    elevation.cos() * azimuth.sin(),
+                    elevation.sin() * (w.y - 0.5).signum(),
+                );
+                let distance = size * 10f32.powf(-3.0 + 7.0 * w.y);
+                let origin = target + frame.to_world(local) * distance;
+                let ray = Ray {
+                    origin,
+                    direction: (target - origin).normalize(),
+                    t_max: f32::INFINITY,
+                };
+                if geometry.occluded(&ray) {
+                    hits += 1;
+                    assert!(geometry.may_meet(&ray, 0), "culled a hit: {ray:?} of {p:?}");
+                }
+                // And a ray passing beside the triangle's box, above its top face by 1 % of the
+                // box's size and 1e-3 of its coordinates, in any direction parallel to the face.
+                let (lo, hi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+                let gap =
+                    0.01 * (hi - lo).max_element() + 1e-3 * lo.abs().max(hi.abs()).max_element();
+                let above = lo.lerp(hi, u.x).with_z(hi.z + gap);
+                let along = Vec3::new(azimuth.cos(), azimuth.sin(), 0.0);
+                let ray = Ray {
+                    origin: above - along * distance,
+                    direction: along,
+                    t_max: f32::INFINITY,
+                };
+                beside += 1;
+                culled_beside += u32::from(!geometry.may_meet(&ray, 0));
+            }
+        }
+        assert!(hits > 10_000, "only {hits} hits");
+        assert_eq!(culled_beside, beside, "rays beside a vertex kept");
+
+        // Rays grazing a sphere: aimed at a point at a tangent, moved in or out by ±1e-7 to 1e-3
+        // of the radius.
+        for (center, radius) in [(Vec3::ZERO, 1.0), (Vec3::new(3e3, -2e3, 1e4), 0.5)] {
+            let sphere = Sphere { center, radius };
+            let geometry = Geometry::new(vec![ShapeGeometry::Sphere(sphere)]);
+            let mut sphere_hits = 0;
+            for _ in 0..20_000 {
+                let (u, v, w) = (sampler.next_2d(), sampler.next_2d(), sampler.next_2d());
+                let z = 1.0 - 2.0 * u.x;
+                let (sin_phi, cos_phi) = (std::f32::consts::TAU * u.y).sin_cos();
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let n = Vec3::new(r * cos_phi, r * sin_phi, z);
+                let frame = crate::math::Frame::from_normal(n);
+                let (sin_psi, cos_psi) = (std::f32::consts::TAU * w.x).sin_cos();
+                let tangent = frame.to_world(Vec3::new(cos_psi, sin_psi, 0.0));
+                let tiny = 10f32.powf(-7.0 + 4.0 * v.x) * radius * (w.y - 0.5).signum();
+                let target = center + n * (radius + tiny);
+                let distance = radius * 10f32.powf(-2.0 + 6.0 * v.y);
+                let ray = Ray {
+                    origin: target - tangent * distance,
+                    direction: tangent,
+                    t_max: f32::INFINITY,
+                };
+                if geometry.occluded(&ray) {
+                    sphere_hits += 1;
+                    assert!(
+                        geometry.may_meet(&ray, 0),
+                        "culled a hit: {ray:?} of {sphere:?}"
+                    );
+                }
+            }
+            assert!(sphere_hits > 5_000, "only {sphere_hits} hits");
+        }
     }
 
     /// A disk of many segments (a fan, which the BVH builds top-down) with spheres and a tilted

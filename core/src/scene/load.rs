@@ -265,6 +265,12 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         Some(o) => PathBuf::from(o),
         None => PathBuf::from(path.file_stem().unwrap_or_default()).with_extension("exr"),
     };
+    let mut emitter_shape = vec![None; emitters.len()];
+    for (shape, emitter) in shape_emitter.iter().enumerate() {
+        if let Some(emitter) = emitter {
+            emitter_shape[*emitter as usize] = Some(shape as u32);
+        }
+    }
     let scene = Scene {
         camera,
         width: film.width,
@@ -279,6 +285,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         environment,
         shape_bsdf,
         shape_emitter,
+        emitter_shape,
         output,
         exposure: film.exposure,
     };

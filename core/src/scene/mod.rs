@@ -45,6 +45,8 @@ pub struct Scene {
     /// Per shape: index of its BSDF and of its area emitter.
     pub shape_bsdf: Vec<u32>,
     pub shape_emitter: Vec<Option<u32>>,
+    /// Per light: the shape it is the area emitter of (None for the others).
+    pub emitter_shape: Vec<Option<u32>>,
     /// Where the EXR goes (the PNG preview goes beside it).
     pub output: PathBuf,
     /// Exposure of the PNG preview, in stops.

@@ -145,19 +145,11 @@ pub enum Densities {
     Both,
 }
 
-/// The shape whose area emitter is light `light`, if it is one.
-fn shape_of_light(scene: &Scene, light: usize) -> Option<usize> {
-    scene
-        .shape_emitter
-        .iter()
-        .position(|e| e.is_some_and(|e| e as usize == light))
-}
-
 /// Where `ray` meets the surface of light `light` (shape `shape`) first, ignoring every other
 /// surface: the closest triangle (Möller–Trumbore) or sphere hit.
-fn hit_on_light(scene: &Scene, shape: usize, ray: &Ray) -> Option<EmitterHit> {
+fn hit_on_light(scene: &Scene, shape: u32, ray: &Ray) -> Option<EmitterHit> {
     let d = ray.direction;
-    match &scene.geometry.shapes()[shape] {
+    match &scene.geometry.shapes()[shape as usize] {
         ShapeGeometry::Sphere(s) => {
             let oc = ray.origin - s.center;
             let (a, half_b) = (d.length_squared(), oc.dot(d));
@@ -215,7 +207,7 @@ fn hit_on_light(scene: &Scene, shape: usize, ray: &Ray) -> Option<EmitterHit> {
 fn light_density_toward(
     scene: &Scene,
     light: usize,
-    light_shape: Option<usize>,
+    light_shape: Option<u32>,
     reference: &ReferencePoint,
     ray: &Ray,
 ) -> f32 {
@@ -232,25 +224,34 @@ fn light_density_toward(
     emitter.pdf_direction(reference, ray.direction, Some(&hit))
 }
 
-/// Where a BSDF-sampled ray reaches light `light`, if it does: the emitter hit (None for the
-/// environment) and the radiance arriving.
-fn reaches_light(scene: &Scene, light: usize, ray: &Ray) -> Option<(Option<EmitterHit>, Rgb)> {
+/// Where a BSDF-sampled ray reaches light `light` (the area emitter of shape `light_shape`, or
+/// the environment), if it does: the emitter hit (None for the environment) and the radiance
+/// arriving. Most BSDF rays reach no light, so the cheapest query that decides is asked: for the
+/// environment, whether anything blocks the ray (any hit will do); for an area light, nothing
+/// when the ray passes clear of its shape's box, and otherwise the first hit, which must be on
+/// the light's shape (only then is its surface computed).
+fn reaches_light(
+    scene: &Scene,
+    light: usize,
+    light_shape: Option<u32>,
+    ray: &Ray,
+) -> Option<(Option<EmitterHit>, Rgb)> {
     let emitter = scene.emitters[light].as_ref();
-    // Most BSDF rays meet something other than this light: only its hits need the surface.
-    match scene.first_hit(ray) {
-        None if scene.environment == Some(light) => Some((None, emitter.eval(ray.direction, None))),
-        None => None,
-        Some(first) if scene.emitter_of_shape(first.shape) == Some(light) => {
-            let hit = scene.geometry.surface(ray, &first);
-            let h = EmitterHit {
-                position: hit.position,
-                normal: hit.geometric_normal,
-                distance: hit.t,
-            };
-            Some((Some(h), emitter.eval(ray.direction, Some(&h))))
-        }
-        Some(_) => None,
+    if scene.environment == Some(light) {
+        return (!scene.occluded(ray)).then(|| (None, emitter.eval(ray.direction, None)));
     }
+    let shape = light_shape?;
+    if !scene.geometry.may_meet(ray, shape) {
+        return None;
+    }
+    let first = scene.first_hit(ray).filter(|first| first.shape == shape)?;
+    let hit = scene.geometry.surface(ray, &first);
+    let h = EmitterHit {
+        position: hit.position,
+        normal: hit.geometric_normal,
+        distance: hit.t,
+    };
+    Some((Some(h), emitter.eval(ray.direction, Some(&h))))
 }
 
 /// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
@@ -270,11 +271,7 @@ pub fn draw_bsdf_samples(
         position: sp.hit.position,
     };
     let both = densities == Densities::Both;
-    let light_shape = if both {
-        shape_of_light(scene, light)
-    } else {
-        None
-    };
+    let light_shape = scene.emitter_shape[light];
     for _ in 0..count {
         let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
         let Some(s) = sp.bsdf.sample(sp.wo, u_lobe, u) else {
@@ -304,7 +301,7 @@ pub fn draw_bsdf_samples(
             records.push(black());
             continue;
         }
-        let Some((hit, le)) = reaches_light(scene, light, &ray) else {
+        let Some((hit, le)) = reaches_light(scene, light, light_shape, &ray) else {
             records.push(black());
             continue;
         };
