@@ -32,6 +32,13 @@ pub trait Bsdf: Send + Sync {
     fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb;
     /// Solid-angle density with which `sample` draws `wi` (zero for delta lobes).
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+    /// `eval` and `pdf` of one pair of directions, bit for bit as the two calls give them. The
+    /// default makes the two calls; a BSDF whose value and density share work (a microfacet
+    /// lobe's D(h) and Λ(ωo)) computes it once, as Mitsuba's `eval_pdf` does. Light sampling
+    /// needs both for every unoccluded sample, and so does [`sample_from_pdf`].
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        (self.eval(wo, wi), self.pdf(wo, wi))
+    }
     /// Draws a direction; `u_lobe` chooses among lobes, `u` places the direction in it.
     fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
     fn flags(&self) -> BsdfFlags;
@@ -44,11 +51,11 @@ pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option
     if !(wi.z > 0.0 && wi.is_finite()) {
         return None;
     }
-    let pdf = bsdf.pdf(wo, wi);
+    let (value, pdf) = bsdf.eval_pdf(wo, wi);
     if !(pdf > 0.0 && pdf.is_finite()) {
         return None;
     }
-    let weight = bsdf.eval(wo, wi) / pdf;
+    let weight = value / pdf;
     weight.is_finite().then_some(BsdfSample {
         wi,
         pdf,

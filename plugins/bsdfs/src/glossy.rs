@@ -84,16 +84,12 @@ impl Glossy {
         ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0) * 0.5
     }
 
-    fn g1(&self, w: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(w))
-    }
-
-    /// Masking-shadowing G2(ωo, ωi).
-    fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let (lo, li) = (self.lambda(wo), self.lambda(wi));
+    /// Masking-shadowing G2(ωo, ωi), given Λ(ωo).
+    fn g2(&self, lambda_o: f32, wi: Vec3) -> f32 {
+        let li = self.lambda(wi);
         match self.masking {
-            Masking::HeightCorrelated => 1.0 / (1.0 + lo + li),
-            Masking::Separable => 1.0 / ((1.0 + lo) * (1.0 + li)),
+            Masking::HeightCorrelated => 1.0 / (1.0 + lambda_o + li),
+            Masking::Separable => 1.0 / ((1.0 + lambda_o) * (1.0 + li)),
         }
     }
 
@@ -113,14 +109,32 @@ impl Glossy {
         self.diffuse * (1.0 - self.f0.max_element()) * (28.0 / (23.0 * PI) * fo * fi)
     }
 
-    fn specular_pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let h = (wo + wi).normalize_or_zero();
-        if h.z <= 0.0 {
-            return 0.0;
-        }
-        // VNDF: D_ωo(h) / (4 ωo·h) = G1(ωo) D(h) / (4 cos θo).
-        let pdf = self.g1(wo) * self.d(h) / (4.0 * wo.z);
+    /// The specular lobe's F D G2 / (4 cos θo cos θi) · cos θi at half vector h (h.z > 0), given
+    /// D(h) and Λ(ωo); zero where it is not finite.
+    fn specular_value(&self, wo: Vec3, wi: Vec3, h: Vec3, d: f32, lambda_o: f32) -> Rgb {
+        let spec = schlick(self.f0, wo.dot(h)) * (d * self.g2(lambda_o, wi) / (4.0 * wo.z));
+        if spec.is_finite() { spec } else { Rgb::ZERO }
+    }
+
+    /// The specular lobe's sampling density (VNDF: D_ωo(h) / (4 ωo·h) = G1(ωo) D(h) / (4 cos
+    /// θo)) given D(h) and Λ(ωo); zero where it is not finite.
+    fn specular_pdf(&self, wo: Vec3, d: f32, lambda_o: f32) -> f32 {
+        let pdf = (1.0 / (1.0 + lambda_o)) * d / (4.0 * wo.z);
         if pdf.is_finite() { pdf } else { 0.0 }
+    }
+
+    /// The mixture density of the two lobes, given the specular one's.
+    fn mixture_pdf(&self, wo: Vec3, wi: Vec3, specular_pdf: f32) -> f32 {
+        let p = self.specular_probability(wo);
+        p * specular_pdf + (1.0 - p) * cosine_hemisphere_pdf(wi.z)
+    }
+
+    /// The diffuse base's value · cos θi (zero without a base, at no cost).
+    fn diffuse_value(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        if self.diffuse == Rgb::ZERO {
+            return Rgb::ZERO;
+        }
+        self.diffuse_term(wo, wi) * wi.z
     }
 
     /// Heitz 2018: a visible normal for ωo.
@@ -149,23 +163,40 @@ impl Bsdf for Glossy {
             return Rgb::ZERO;
         }
         let h = (wo + wi).normalize_or_zero();
-        let mut f = self.diffuse_term(wo, wi) * wi.z;
-        if h.z > 0.0 {
-            // F D G2 / (4 cos θo cos θi) · cos θi.
-            let spec = schlick(self.f0, wo.dot(h)) * (self.d(h) * self.g2(wo, wi) / (4.0 * wo.z));
-            if spec.is_finite() {
-                f += spec;
-            }
+        let f = self.diffuse_value(wo, wi);
+        if h.z <= 0.0 {
+            return f;
         }
-        f
+        f + self.specular_value(wo, wi, h, self.d(h), self.lambda(wo))
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let p = self.specular_probability(wo);
-        p * self.specular_pdf(wo, wi) + (1.0 - p) * cosine_hemisphere_pdf(wi.z)
+        let h = (wo + wi).normalize_or_zero();
+        let specular_pdf = if h.z > 0.0 {
+            self.specular_pdf(wo, self.d(h), self.lambda(wo))
+        } else {
+            0.0
+        };
+        self.mixture_pdf(wo, wi, specular_pdf)
+    }
+
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return (Rgb::ZERO, 0.0);
+        }
+        let h = (wo + wi).normalize_or_zero();
+        let f = self.diffuse_value(wo, wi);
+        if h.z <= 0.0 {
+            return (f, self.mixture_pdf(wo, wi, 0.0));
+        }
+        let (d, lambda_o) = (self.d(h), self.lambda(wo));
+        (
+            f + self.specular_value(wo, wi, h, d, lambda_o),
+            self.mixture_pdf(wo, wi, self.specular_pdf(wo, d, lambda_o)),
+        )
     }
 
     fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {

@@ -367,6 +367,41 @@ fn sample_weight_equals_eval_over_pdf() {
     }
 }
 
+/// `eval_pdf` gives `eval` and `pdf` bit for bit (a BSDF that shares their work must not
+/// change either): at sampled directions, uniform ones over the whole sphere (below the
+/// horizon too), and from below the horizon.
+#[test]
+fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
+    let bits = |(f, p): (Vec3, f32)| (f.to_array().map(f32::to_bits), p.to_bits());
+    for (name, b) in all_bsdfs() {
+        for wo in INCIDENT.map(incident).into_iter().chain([-incident(0.5)]) {
+            let mut s = Sampler::new(test_seed(), 4, 5);
+            let mut compared = 0;
+            for i in 0..4_000 {
+                let (ul, u) = (s.next_1d(), s.next_2d());
+                let wi = if i % 2 == 0 {
+                    let Some(smp) = b.sample(wo, ul, u) else {
+                        continue;
+                    };
+                    smp.wi
+                } else {
+                    let z = 1.0 - 2.0 * u.x;
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let phi = std::f32::consts::TAU * u.y;
+                    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+                };
+                assert_eq!(
+                    bits(b.eval_pdf(wo, wi)),
+                    bits((b.eval(wo, wi), b.pdf(wo, wi))),
+                    "{name}: wo {wo} wi {wi}"
+                );
+                compared += 1;
+            }
+            assert!(compared >= 2_000, "{name}: only {compared} directions");
+        }
+    }
+}
+
 /// Directional albedo by sampling: mean weight and its standard error.
 fn albedo(b: &dyn Bsdf, wo: Vec3, n: usize) -> (f64, f64) {
     let mut s = Sampler::new(test_seed(), 8, 7);

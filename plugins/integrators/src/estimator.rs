@@ -69,15 +69,21 @@ impl<'a> ShadingPoint<'a> {
         !scene.occluded(&ray)
     }
 
-    /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there. A
-    /// light point closer to the surface's plane than the rounding error of the shading point
-    /// (a light lying on the surface) is on no definite side of it, and lights nothing.
-    fn eval_toward(&self, sample: &EmitterSample) -> Rgb {
+    /// Whether the surface can reflect toward a light sample: ωi on the viewer's side of the
+    /// geometric surface. A light point closer to the surface's plane than the rounding error of
+    /// the shading point (a light lying on the surface) is on no definite side of it, and lights
+    /// nothing.
+    fn reflects_toward_sample(&self, sample: &EmitterSample) -> bool {
         let height = self.normal.dot(sample.wi);
         let undecided = sample.position.is_some_and(|p| {
             height * (p - self.hit.position).length() <= self.normal.abs().dot(self.hit.error)
         });
-        if height <= 0.0 || undecided {
+        height > 0.0 && !undecided
+    }
+
+    /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there.
+    fn eval_toward(&self, sample: &EmitterSample) -> Rgb {
+        if !self.reflects_toward_sample(sample) {
             return Rgb::ZERO;
         }
         self.bsdf.eval(self.wo, self.frame.to_local(sample.wi))
@@ -348,12 +354,17 @@ pub fn draw_light_samples(
             records.push(SampleRecord::default());
             continue;
         };
-        let f = sp.eval_toward(&ls);
+        let wi = sp.frame.to_local(ls.wi);
+        // Value and density in one call: an unoccluded sample needs both.
+        let evaluated = sp
+            .reflects_toward_sample(&ls)
+            .then(|| sp.bsdf.eval_pdf(sp.wo, wi));
+        let (f, p_bsdf) = evaluated.unwrap_or((Rgb::ZERO, 0.0));
         if f == Rgb::ZERO || !sp.sees(scene, &ls) {
-            let p_bsdf = if densities == Densities::Both {
-                sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi))
-            } else {
-                0.0
+            let p_bsdf = match (densities, evaluated) {
+                (Densities::Lit, _) => 0.0,
+                (Densities::Both, Some(_)) => p_bsdf,
+                (Densities::Both, None) => sp.bsdf.pdf(sp.wo, wi),
             };
             records.push(SampleRecord {
                 p_light: ls.pdf,
@@ -364,7 +375,7 @@ pub fn draw_light_samples(
         }
         records.push(SampleRecord {
             f: f * ls.radiance,
-            p_bsdf: sp.bsdf.pdf(sp.wo, sp.frame.to_local(ls.wi)),
+            p_bsdf,
             p_light: ls.pdf,
             delta: false,
         });
