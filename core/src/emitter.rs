@@ -41,6 +41,10 @@ pub trait Emitter: Send + Sync {
     fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32;
     /// Radiance emitted toward the reference point along `-wi`.
     fn eval(&self, wi: Vec3, hit: Option<&EmitterHit>) -> Rgb;
+    /// A hint that `eval` and `pdf_direction` of `wi` (a ray that may escape the scene) will
+    /// follow once the ray is traced: an emitter whose lookup reads a large table starts the
+    /// read now, so that it overlaps the traversal. The default does nothing.
+    fn prefetch(&self, _wi: Vec3) {}
     /// Point and directional lights: reached only by their own samples.
     fn is_delta(&self) -> bool;
     /// An environment: reached by rays that leave the scene (`hit` is then `None`).

@@ -244,6 +244,7 @@ fn reaches_light(
 ) -> Option<(Option<EmitterHit>, Rgb)> {
     let emitter = scene.emitters[light].as_ref();
     if scene.environment == Some(light) {
+        emitter.prefetch(ray.direction);
         return (!scene.occluded(ray)).then(|| (None, emitter.eval(ray.direction, None)));
     }
     let shape = light_shape?;
