@@ -483,7 +483,8 @@ impl Geometry {
             (*lo, *hi) = (*lo - pad, *hi + pad);
         }
         let (bvh, order) = WideBvh::build(&boxes, scale);
-        let primitives = order.par_iter().map(|&i| prims[i as usize]).collect();
+        let mut primitives = crate::huge_pages::vec_with_capacity(order.len());
+        primitives.par_extend(order.par_iter().map(|&i| prims[i as usize]));
         Geometry {
             shapes,
             primitives,

@@ -10,6 +10,7 @@ pub mod dylib;
 pub mod emitter;
 pub mod error;
 pub mod film;
+pub mod huge_pages;
 pub mod image_io;
 pub mod integrator;
 pub mod limits;

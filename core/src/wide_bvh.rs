@@ -183,7 +183,9 @@ impl WideBvh {
             .par_iter()
             .map(|&(_, child)| collapse_subtree(bvh2, child, exact))
             .collect();
-        let mut nodes = Vec::with_capacity(1 + parts.iter().map(|p| p.nodes.len()).sum::<usize>());
+        let mut nodes = crate::huge_pages::vec_with_capacity(
+            1 + parts.iter().map(|p| p.nodes.len()).sum::<usize>(),
+        );
         nodes.push(root);
         let mut deepest = 1;
         for (&(slot, _), part) in inner.iter().zip(parts) {

@@ -236,8 +236,8 @@ impl Distribution2D {
             .collect();
         let marginal = Distribution1D::new(&row_weights)?;
         let scale = (nx * ny) as f32;
-        let mut slots = Vec::with_capacity(nx * ny);
-        let mut pdfs = Vec::with_capacity(nx * ny);
+        let mut slots = crate::huge_pages::vec_with_capacity(nx * ny);
+        let mut pdfs = crate::huge_pages::vec_with_capacity(nx * ny);
         for (row, dist) in rows.iter().enumerate() {
             match dist {
                 Some(dist) => {

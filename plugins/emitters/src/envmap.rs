@@ -250,11 +250,13 @@ impl EnvironmentMap {
                 )
             }
         };
-        let texels = pixels
-            .into_iter()
-            .zip(densities)
-            .map(|(radiance, density)| Texel { radiance, density })
-            .collect();
+        let mut texels = lumis_core::huge_pages::vec_with_capacity(pixels.len());
+        texels.extend(
+            pixels
+                .into_iter()
+                .zip(densities)
+                .map(|(radiance, density)| Texel { radiance, density }),
+        );
         let (sin, cos) = settings.rotation_degrees.to_radians().sin_cos();
         // Mitsuba's orientation is a half turn more: exactly (−cos, −sin).
         let rotation = match settings.orientation {
