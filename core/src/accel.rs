@@ -784,7 +784,7 @@ mod tests {
 
     /// [`Geometry::may_meet`] where rounding decides: rays toward points within 1e-7 to 1e-3 of
     /// a triangle's edges and vertices, on both sides, and rays grazing a sphere, from 1e-3 to
-    /// 1e4 times the shape's size, at elevations down to 1e-5 rad, at coordinates up to 1e4.
+    /// 1e4 times the shape's size, at elevations down to 1e-5 rad, at coordinates up to 3e4.
     /// Every ray the watertight test (or the sphere test) lets hit is one `may_meet` keeps; and
     /// rays passing 1 % of the size beside the shape are culled.
     #[test]
@@ -819,6 +819,7 @@ mod tests {
             let frame = crate::math::Frame::from_normal(normal);
             for case in 0..20_000 {
                 let (u, v, w) = (sampler.next_2d(), sampler.next_2d(), sampler.next_2d());
+                let side = if sampler.next_1d() < 0.5 { -1.0 } else { 1.0 };
                 // A point on an edge (or at a vertex), moved off it by ±1e-7 to 1e-3 of the size,
                 // in the triangle's plane.
                 let (a, b) = (p[case % 3], p[(case + 1) % 3]);
@@ -836,7 +837,7 @@ mod tests {
                 let local = Vec3::new(
                     elevation.cos() * azimuth.cos(),
                     elevation.cos() * azimuth.sin(),
-                    elevation.sin() * (w.y - 0.5).signum(),
+                    elevation.sin() * side,
                 );
                 let distance = size * 10f32.powf(-3.0 + 7.0 * w.y);
                 let origin = target + frame.to_world(local) * distance;
