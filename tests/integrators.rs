@@ -962,6 +962,50 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
 /// scene away from the origin, where a wrong hit position would go unnoticed). For a
 /// BSDF sample blocked before the light, the light's density comes from the light intersected
 /// alone; for a blocked light sample, the BSDF's density is evaluated all the same.
+/// A BSDF sample takes `BSDF_SAMPLE_NUMBERS` numbers from the stream whatever becomes of it
+/// (the phase relies on it to know the first light sample's numbers in advance): on the veach
+/// scene's glossy plates, where samples fail, miss and reach lights.
+#[test]
+fn bsdf_samples_take_a_fixed_count_of_numbers() {
+    use lumis::integrators::estimator::{
+        BSDF_SAMPLE_NUMBERS, Densities, ShadingPoint, draw_bsdf_samples,
+    };
+    let loaded = common::load(&repo_path("scenes/veach.ron"), &[]).unwrap();
+    let scene = &loaded.scene;
+    let mut records = Vec::new();
+    let mut points = 0;
+    for x in (0..scene.width).step_by(7) {
+        let mut sample = lumis::integrator::CameraSample::new(scene, glam::UVec2::new(x, 200), 0);
+        let Some(hit) = scene.intersect(&sample.ray) else {
+            continue;
+        };
+        let sp = ShadingPoint::new(scene, hit, -sample.ray.direction);
+        for light in 0..scene.emitters.len() {
+            for count in [1, 5] {
+                let mut expected = sample.sampler.clone();
+                expected.skip(BSDF_SAMPLE_NUMBERS * count);
+                draw_bsdf_samples(
+                    scene,
+                    &sp,
+                    light,
+                    count,
+                    &mut sample.sampler,
+                    &mut records,
+                    Densities::Lit,
+                );
+                assert_eq!(
+                    sample.sampler.next_1d().to_bits(),
+                    expected.next_1d().to_bits(),
+                    "pixel ({x}, 200), light {light}, {count} samples"
+                );
+            }
+        }
+        points += 1;
+    }
+    assert!(points > 10, "only {points} shading points");
+    assert!(records.iter().any(|r| !r.is_black()) && records.iter().any(|r| r.is_black()));
+}
+
 #[test]
 fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
     use lumis::integrators::estimator::{

@@ -45,6 +45,11 @@ pub trait Emitter: Send + Sync {
     /// follow once the ray is traced: an emitter whose lookup reads a large table starts the
     /// read now, so that it overlaps the traversal. The default does nothing.
     fn prefetch(&self, _wi: Vec3) {}
+    /// A hint that `sample_direction` with the numbers `u()` gives will follow after other
+    /// work: an emitter whose sampling reads a large table at a place they decide starts the
+    /// read now. `u` computes the numbers (ahead of the stream), so an emitter with nothing to
+    /// prefetch, the default, costs nothing.
+    fn prefetch_sample(&self, _u: &dyn Fn() -> Vec2) {}
     /// Point and directional lights: reached only by their own samples.
     fn is_delta(&self) -> bool;
     /// An environment: reached by rays that leave the scene (`hit` is then `None`).

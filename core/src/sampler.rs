@@ -40,6 +40,14 @@ impl Sampler {
     }
 
     /// Two uniform numbers in [0, 1)².
+    /// Skips `count` numbers, as `count` calls of `next_1d` would.
+    #[inline]
+    pub fn skip(&mut self, count: u32) {
+        for _ in 0..count {
+            self.rng.next_u32();
+        }
+    }
+
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let x = self.next_1d();
@@ -50,6 +58,16 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn skipping_is_drawing_and_discarding() {
+        let (mut skipped, mut drawn) = (Sampler::new(7, 123, 4), Sampler::new(7, 123, 4));
+        skipped.skip(5);
+        for _ in 0..5 {
+            drawn.next_1d();
+        }
+        assert_eq!(skipped.next_1d().to_bits(), drawn.next_1d().to_bits());
+    }
 
     #[test]
     fn same_indices_same_numbers() {

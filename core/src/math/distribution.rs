@@ -289,6 +289,19 @@ impl Distribution2D {
         (col, row, glam::Vec2::new(ux, uy))
     }
 
+    /// Prefetches what [`Distribution2D::sample_cell`] of `u` will read from memory (the
+    /// alias slot of the cell it starts from), and returns that cell's row-major index, which
+    /// is the sampled cell unless the slot sends the sample to its alias: a caller may prefetch
+    /// its own per-cell data there.
+    #[inline]
+    pub fn prefetch_sample(&self, u: glam::Vec2) -> usize {
+        let (row, _) = self.marginal.sample_reuse(u.y);
+        let (slot, _) = slot_of(u.x, self.nx);
+        let index = row * self.nx + slot;
+        super::prefetch(&self.slots[index]);
+        index
+    }
+
     /// Density of cell (`col`, `row`) (with respect to area on the unit square).
     #[inline]
     pub fn cell_pdf(&self, col: usize, row: usize) -> f32 {
@@ -308,6 +321,30 @@ impl Distribution2D {
 #[cfg(test)]
 mod tests_2d {
     use super::*;
+
+    /// The prefetched cell is in the sampled row, and is the sampled cell or the one its slot
+    /// sends samples to; for a smooth distribution, mostly the sampled cell itself.
+    #[test]
+    fn prefetched_cells_are_the_sampled_ones_or_their_alias_slots() {
+        let (nx, ny) = (16, 8);
+        let values: Vec<f32> = (0..nx * ny).map(|i| 1.0 + (i % 7) as f32).collect();
+        let d = Distribution2D::new(&values, nx, ny).unwrap();
+        let mut sampler = crate::sampler::Sampler::new(3, 1, 4);
+        let mut same = 0;
+        for _ in 0..10_000 {
+            let u = sampler.next_2d();
+            let index = d.prefetch_sample(u);
+            let (col, row, _) = d.sample_cell(u);
+            assert_eq!(index / nx, row, "u {u}");
+            let slot = d.slots[index];
+            assert!(index % nx == col || slot.alias as usize == col, "u {u}");
+            same += usize::from(index % nx == col);
+        }
+        assert!(
+            same > 5_000,
+            "only {same} of 10 000 prefetched cells sampled"
+        );
+    }
 
     #[test]
     fn sampled_points_have_the_tabulated_density() {

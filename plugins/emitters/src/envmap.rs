@@ -533,6 +533,12 @@ impl Emitter for EnvironmentMap {
         self.lookup(self.to_uv(wi).0)
     }
 
+    fn prefetch_sample(&self, u: &dyn Fn() -> Vec2) {
+        if let Sampling::Nearest(Some(d)) = &self.sampling {
+            prefetch(&self.texels[d.prefetch_sample(u())]);
+        }
+    }
+
     fn prefetch(&self, wi: Vec3) {
         if let Sampling::Nearest(_) = self.sampling {
             prefetch(&self.texels[self.nearest_index(self.approximate_uv(wi))]);

@@ -5,7 +5,8 @@
 
 use crate::aovs::LightTally;
 use crate::estimator::{
-    Densities, SampleRecord, ShadingPoint, draw_bsdf_samples, draw_light_samples,
+    BSDF_SAMPLE_NUMBERS, Densities, SampleRecord, ShadingPoint, draw_bsdf_samples,
+    draw_light_samples,
 };
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
@@ -203,6 +204,17 @@ impl<'a> LightSampling<'a> {
             Densities::Lit
         };
         let sampler = &mut *self.sampler;
+        if split.n_light > 0 && split.n_bsdf > 0 {
+            // The first light sample's numbers are known now, after the BSDF samples' three
+            // each: the light may start reading what sampling them needs (an environment map's
+            // alias slot, a cache miss) while the BSDF samples trace their rays.
+            let first_light_numbers = || {
+                let mut ahead = sampler.clone();
+                ahead.skip(BSDF_SAMPLE_NUMBERS * split.n_bsdf);
+                ahead.next_2d()
+            };
+            scene.emitters[light].prefetch_sample(&first_light_numbers);
+        }
         draw_bsdf_samples(
             scene,
             point,

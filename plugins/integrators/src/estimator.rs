@@ -261,9 +261,13 @@ fn reaches_light(
     Some((Some(h), emitter.eval(ray.direction, Some(&h))))
 }
 
+/// Numbers a BSDF sample takes from the camera sample's stream (lobe choice, then direction),
+/// drawn or not: what follows a phase's BSDF samples is known in advance.
+pub const BSDF_SAMPLE_NUMBERS: u32 = 3;
+
 /// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
-/// with the densities `densities` asks for. Each sample takes three numbers from `sampler`
-/// (lobe choice, then direction), drawn or not.
+/// with the densities `densities` asks for. Each sample takes [`BSDF_SAMPLE_NUMBERS`] numbers
+/// from `sampler` (lobe choice, then direction), drawn or not.
 pub fn draw_bsdf_samples(
     scene: &Scene,
     sp: &ShadingPoint,
