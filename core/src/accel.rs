@@ -712,8 +712,10 @@ mod tests {
         )
     }
 
-    #[test]
-    fn bvh_answers_equal_brute_force() {
+    /// Runs `check` on 64 random scenes (`scene`) with 200 random rays (`ray`) each.
+    fn for_random_scenes_and_rays(
+        check: impl Fn(&Geometry, &Ray) -> Result<(), proptest::test_runner::TestCaseError>,
+    ) {
         let mut runner = TestRunner::new(Config {
             cases: 64,
             ..Config::default()
@@ -723,60 +725,50 @@ mod tests {
                 &(scene(), prop::collection::vec(ray(), 200)),
                 |(shapes, rays)| {
                     let geometry = Geometry::new(shapes);
-                    for ray in &rays {
-                        let expected = brute_force_closest(&geometry.primitives, ray);
-                        let got = geometry.intersect(ray);
-                        prop_assert_eq!(got.map(|h| h.t), expected.map(|e| e.0), "ray {:?}", ray);
-                        prop_assert_eq!(geometry.occluded(ray), expected.is_some());
-                        if let Some(hit) = got {
-                            prop_assert!(
-                                hit.position.is_finite() && hit.geometric_normal.is_normalized()
-                            );
-                        }
-                    }
-                    Ok(())
+                    rays.iter().try_for_each(|ray| check(&geometry, ray))
                 },
             )
             .unwrap();
+    }
+
+    #[test]
+    fn bvh_answers_equal_brute_force() {
+        for_random_scenes_and_rays(|geometry, ray| {
+            let expected = brute_force_closest(&geometry.primitives, ray);
+            let got = geometry.intersect(ray);
+            prop_assert_eq!(got.map(|h| h.t), expected.map(|e| e.0), "ray {:?}", ray);
+            prop_assert_eq!(geometry.occluded(ray), expected.is_some());
+            if let Some(hit) = got {
+                prop_assert!(hit.position.is_finite() && hit.geometric_normal.is_normalized());
+            }
+            Ok(())
+        });
     }
 
     /// [`Geometry::may_meet`] on random scenes and rays: true for every shape the ray hits
     /// (any of its primitives, not only the closest one).
     #[test]
     fn may_meet_holds_for_every_shape_hit() {
-        let mut runner = TestRunner::new(Config {
-            cases: 64,
-            ..Config::default()
-        });
         let culled = Cell::new(0usize);
-        runner
-            .run(
-                &(scene(), prop::collection::vec(ray(), 200)),
-                |(shapes, rays)| {
-                    let geometry = Geometry::new(shapes);
-                    for ray in &rays {
-                        for shape in 0..geometry.shapes.len() as u32 {
-                            let hit = geometry.primitives.iter().any(|prim| match prim {
-                                Primitive::Triangle { p, shape: s, .. } => {
-                                    let shear = RayShear::new(ray.direction);
-                                    *s == shape
-                                        && intersect_triangle(ray, &shear, ray.t_max, p)
-                                            .is_some_and(|(t, _)| t < ray.t_max)
-                                }
-                                Primitive::Sphere { sphere, shape: s } => {
-                                    *s == shape
-                                        && intersect_sphere(ray, ray.t_max, sphere).is_some()
-                                }
-                            });
-                            let may = geometry.may_meet(ray, shape);
-                            prop_assert!(may || !hit, "shape {} hit by {:?}", shape, ray);
-                            culled.set(culled.get() + usize::from(!may));
-                        }
+        for_random_scenes_and_rays(|geometry, ray| {
+            for shape in 0..geometry.shapes.len() as u32 {
+                let hit = geometry.primitives.iter().any(|prim| match prim {
+                    Primitive::Triangle { p, shape: s, .. } => {
+                        let shear = RayShear::new(ray.direction);
+                        *s == shape
+                            && intersect_triangle(ray, &shear, ray.t_max, p)
+                                .is_some_and(|(t, _)| t < ray.t_max)
                     }
-                    Ok(())
-                },
-            )
-            .unwrap();
+                    Primitive::Sphere { sphere, shape: s } => {
+                        *s == shape && intersect_sphere(ray, ray.t_max, sphere).is_some()
+                    }
+                });
+                let may = geometry.may_meet(ray, shape);
+                prop_assert!(may || !hit, "shape {} hit by {:?}", shape, ray);
+                culled.set(culled.get() + usize::from(!may));
+            }
+            Ok(())
+        });
         // The test has power only if the cull culls: most random rays pass clear of a shape.
         let culled = culled.get();
         assert!(culled > 64 * 200, "only {culled} shape–ray pairs culled");
@@ -799,14 +791,14 @@ mod tests {
                 Vec3::new(0.0, 1e-4, 0.0),
             ],
             [
-                Vec3::new(1e4, 2e4, -3e4),
-                Vec3::new(1e4 + 3.0, 2e4, -3e4),
-                Vec3::new(1e4, 2e4 + 2.0, -3e4 + 1.0),
+                Vec3::new(-2e4, 3e4, 1e4),
+                Vec3::new(-2e4, 3e4 + 2.0, 1e4),
+                Vec3::new(-2e4 + 1.0, 3e4, 1e4 + 3.0),
             ],
             [
-                Vec3::new(-500.0, 0.0, -500.0),
-                Vec3::new(500.0, 0.0, -500.0),
-                Vec3::new(0.0, 0.0, 700.0),
+                Vec3::new(-700.0, -300.0, 0.0),
+                Vec3::new(600.0, -300.0, 50.0),
+                Vec3::new(0.0, 400.0, -20.0),
             ],
         ];
         for p in triangles {
