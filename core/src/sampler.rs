@@ -39,7 +39,6 @@ impl Sampler {
         (self.rng.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 
-    /// Two uniform numbers in [0, 1)².
     /// Skips `count` numbers, as `count` calls of `next_1d` would.
     #[inline]
     pub fn skip(&mut self, count: u32) {
@@ -48,6 +47,7 @@ impl Sampler {
         }
     }
 
+    /// Two uniform numbers in [0, 1)².
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let x = self.next_1d();

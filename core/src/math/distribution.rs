@@ -279,8 +279,7 @@ impl Distribution2D {
     /// trip through [0, 1)². The cell's density is [`Distribution2D::cell_pdf`].
     #[inline]
     pub fn sample_cell(&self, u: glam::Vec2) -> (usize, usize, glam::Vec2) {
-        let (row, uy) = self.marginal.sample_reuse(u.y);
-        let (slot, v) = slot_of(u.x, self.nx);
+        let (row, slot, uy, v) = self.start(u);
         let AliasSlot { keep, alias } = self.slots[row * self.nx + slot];
         let (col, ux) = match split(v, keep) {
             (true, ux) => (slot, ux),
@@ -289,14 +288,22 @@ impl Distribution2D {
         (col, row, glam::Vec2::new(ux, uy))
     }
 
+    /// Where sampling with `u` starts: the row (from the marginal, with its reused number) and
+    /// the alias slot within it (with the number's position inside the slot).
+    #[inline]
+    fn start(&self, u: glam::Vec2) -> (usize, usize, f32, f32) {
+        let (row, uy) = self.marginal.sample_reuse(u.y);
+        let (slot, v) = slot_of(u.x, self.nx);
+        (row, slot, uy, v)
+    }
+
     /// Prefetches what [`Distribution2D::sample_cell`] of `u` will read from memory (the
     /// alias slot of the cell it starts from), and returns that cell's row-major index, which
     /// is the sampled cell unless the slot sends the sample to its alias: a caller may prefetch
     /// its own per-cell data there.
     #[inline]
     pub fn prefetch_sample(&self, u: glam::Vec2) -> usize {
-        let (row, _) = self.marginal.sample_reuse(u.y);
-        let (slot, _) = slot_of(u.x, self.nx);
+        let (row, slot, _, _) = self.start(u);
         let index = row * self.nx + slot;
         super::prefetch(&self.slots[index]);
         index
