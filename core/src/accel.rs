@@ -71,6 +71,7 @@ pub struct FirstHit {
 
 /// pbrt-v4's OffsetRayOrigin: a point just outside the error box of `p`, on the side of `n`
 /// that `w` points to.
+#[inline(always)]
 pub fn offset_ray_origin(p: Vec3, error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = n.abs().dot(error);
     let mut offset = d * n;
@@ -94,6 +95,7 @@ pub const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Intersection {
     /// A ray leaving this point in direction `w`.
+    #[inline]
     pub fn spawn_ray(&self, w: Vec3) -> Ray {
         Ray {
             origin: offset_ray_origin(self.position, self.error, self.geometric_normal, w),
@@ -103,6 +105,7 @@ impl Intersection {
     }
 
     /// A ray from this point to `target` that stops just short of it.
+    #[inline]
     pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
         let origin = offset_ray_origin(
             self.position,
