@@ -5,8 +5,8 @@
 
 use crate::aovs::LightTally;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, Densities, SampleRecord, ShadingPoint, draw_bsdf_samples,
-    draw_light_samples,
+    BSDF_SAMPLE_NUMBERS, DeferredLookups, Densities, SampleRecord, ShadingPoint,
+    draw_bsdf_samples_deferring, draw_light_samples,
 };
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
@@ -77,6 +77,7 @@ pub trait Allocation: Send + Sync {
 pub struct PhaseBuffers {
     records: Vec<SampleRecord>,
     contributions: Vec<Rgb>,
+    deferred: DeferredLookups,
 }
 
 thread_local! {
@@ -195,6 +196,7 @@ impl<'a> LightSampling<'a> {
         let PhaseBuffers {
             records,
             contributions,
+            deferred,
         } = &mut *self.buffers;
         records.clear();
         let (scene, point, light) = (self.scene, self.point, self.light);
@@ -215,7 +217,7 @@ impl<'a> LightSampling<'a> {
             };
             scene.emitters[light].prefetch_sample(&first_light_numbers);
         }
-        draw_bsdf_samples(
+        draw_bsdf_samples_deferring(
             scene,
             point,
             light,
@@ -223,6 +225,7 @@ impl<'a> LightSampling<'a> {
             sampler,
             records,
             densities,
+            deferred,
         );
         draw_light_samples(
             scene,
@@ -233,6 +236,7 @@ impl<'a> LightSampling<'a> {
             records,
             densities,
         );
+        deferred.look_up(scene, point, light, records);
         contributions.clear();
         contributions.resize(records.len(), Rgb::ZERO);
         let phase = Phase {

@@ -14,8 +14,8 @@
 
 use glam::Vec3;
 use lumis_core::accel::{Intersection, Ray};
-use lumis_core::bsdf::Bsdf;
-use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
+use lumis_core::bsdf::{Bsdf, BsdfSample};
+use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
@@ -230,35 +230,118 @@ fn light_density_toward(
     emitter.pdf_direction(reference, ray.direction, Some(&hit))
 }
 
+/// What a BSDF-sampled ray finds of the light it was drawn for.
+enum Reached {
+    /// Nothing: it is blocked, or passes the light by.
+    Nothing,
+    /// The area light's surface, and the radiance arriving from it.
+    Surface(EmitterHit, Rgb),
+    /// The environment, unblocked; its radiance is looked up later ([`DeferredLookups`]).
+    Environment,
+}
+
 /// Where a BSDF-sampled ray reaches light `light` (the area emitter of shape `light_shape`, or
-/// the environment), if it does: the emitter hit (None for the environment) and the radiance
-/// arriving. Most BSDF rays reach no light, so the cheapest query that decides is asked: for the
-/// environment, whether anything blocks the ray (any hit will do); for an area light, nothing
-/// when the ray passes clear of its shape's box, and otherwise the first hit, which must be on
-/// the light's shape (only then is its surface computed).
-fn reaches_light(
-    scene: &Scene,
-    light: usize,
-    light_shape: Option<u32>,
-    ray: &Ray,
-) -> Option<(Option<EmitterHit>, Rgb)> {
+/// the environment), if it does. Most BSDF rays reach no light, so the cheapest query that
+/// decides is asked: for the environment, whether anything blocks the ray (any hit will do);
+/// for an area light, nothing when the ray passes clear of its shape's box, and otherwise the
+/// first hit, which must be on the light's shape (only then is its surface computed).
+fn reaches_light(scene: &Scene, light: usize, light_shape: Option<u32>, ray: &Ray) -> Reached {
     let emitter = scene.emitters[light].as_ref();
     if scene.environment == Some(light) {
         emitter.prefetch(ray.direction);
-        return (!scene.occluded(ray)).then(|| (None, emitter.eval(ray.direction, None)));
+        return if scene.occluded(ray) {
+            Reached::Nothing
+        } else {
+            Reached::Environment
+        };
     }
-    let shape = light_shape?;
+    let Some(shape) = light_shape else {
+        return Reached::Nothing;
+    };
     if !scene.geometry.may_meet(ray, shape) {
-        return None;
+        return Reached::Nothing;
     }
-    let first = scene.first_hit(ray).filter(|first| first.shape == shape)?;
+    let Some(first) = scene.first_hit(ray).filter(|first| first.shape == shape) else {
+        return Reached::Nothing;
+    };
     let hit = scene.geometry.surface(ray, &first);
     let h = EmitterHit {
         position: hit.position,
         normal: hit.geometric_normal,
         distance: hit.t,
     };
-    Some((Some(h), emitter.eval(ray.direction, Some(&h))))
+    Reached::Surface(h, emitter.eval(ray.direction, Some(&h)))
+}
+
+/// The record of a BSDF sample `s` (world direction `wi`) that reached its light (`hit` on an
+/// area light, None for the environment), from which radiance `le` arrives.
+fn reached_record(
+    emitter: &dyn Emitter,
+    reference: &ReferencePoint,
+    s: &BsdfSample,
+    wi: Vec3,
+    hit: Option<&EmitterHit>,
+    le: Rgb,
+) -> SampleRecord {
+    let black = SampleRecord {
+        p_bsdf: s.pdf,
+        delta: s.delta,
+        ..SampleRecord::default()
+    };
+    if le == Rgb::ZERO {
+        // The light does not emit this way: light sampling never produces the direction.
+        black
+    } else if s.delta {
+        // The Dirac densities cancel: f / p_B is the sample's weight times L_e.
+        SampleRecord {
+            f: s.weight * le,
+            ..black
+        }
+    } else {
+        SampleRecord {
+            f: s.weight * s.pdf * le,
+            p_bsdf: s.pdf,
+            p_light: emitter.pdf_direction(reference, wi, hit),
+            delta: false,
+        }
+    }
+}
+
+/// BSDF samples whose rays reached the environment unblocked, their records still to be
+/// filled ([`DeferredLookups::look_up`]). The map's texel, asked for when the ray was drawn,
+/// is read only after the phase's light samples: an unblocked ray's traversal is short, and
+/// reading the texel right after it waited on a cache miss (the dragon's largest single
+/// stall); the light samples' work now covers it. The records do not change.
+#[derive(Default)]
+pub struct DeferredLookups(Vec<DeferredLookup>);
+
+struct DeferredLookup {
+    /// Index of the record in the phase's records.
+    record: usize,
+    sample: BsdfSample,
+    /// The sample's direction in world space.
+    wi: Vec3,
+}
+
+impl DeferredLookups {
+    /// Fills the records of the deferred samples of light `light` at `sp` (the environment) and
+    /// forgets them.
+    pub fn look_up(
+        &mut self,
+        scene: &Scene,
+        sp: &ShadingPoint,
+        light: usize,
+        records: &mut [SampleRecord],
+    ) {
+        let emitter = scene.emitters[light].as_ref();
+        let reference = ReferencePoint {
+            position: sp.hit.position,
+        };
+        for d in self.0.drain(..) {
+            let le = emitter.eval(d.wi, None);
+            records[d.record] = reached_record(emitter, &reference, &d.sample, d.wi, None, le);
+        }
+    }
 }
 
 /// Numbers a BSDF sample takes from the camera sample's stream (lobe choice, then direction),
@@ -276,6 +359,40 @@ pub fn draw_bsdf_samples(
     sampler: &mut Sampler,
     records: &mut Vec<SampleRecord>,
     densities: Densities,
+) {
+    draw_bsdf_records(scene, sp, light, count, sampler, records, densities, None);
+}
+
+/// [`draw_bsdf_samples`], leaving the records of samples that reach the environment to
+/// `deferred`, whose [`DeferredLookups::look_up`] must fill them before they are read (after
+/// the phase's light samples).
+#[allow(clippy::too_many_arguments)]
+pub fn draw_bsdf_samples_deferring(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    count: u32,
+    sampler: &mut Sampler,
+    records: &mut Vec<SampleRecord>,
+    densities: Densities,
+    deferred: &mut DeferredLookups,
+) {
+    let deferred = Some(deferred);
+    draw_bsdf_records(
+        scene, sp, light, count, sampler, records, densities, deferred,
+    );
+}
+
+#[allow(clippy::too_many_arguments)]
+fn draw_bsdf_records(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    count: u32,
+    sampler: &mut Sampler,
+    records: &mut Vec<SampleRecord>,
+    densities: Densities,
+    mut deferred: Option<&mut DeferredLookups>,
 ) {
     let emitter = scene.emitters[light].as_ref();
     let reference = ReferencePoint {
@@ -312,30 +429,26 @@ pub fn draw_bsdf_samples(
             records.push(black());
             continue;
         }
-        let Some((hit, le)) = reaches_light(scene, light, light_shape, &ray) else {
-            records.push(black());
-            continue;
-        };
-        records.push(if le == Rgb::ZERO {
-            // The light does not emit this way: light sampling never produces the direction.
-            SampleRecord {
-                p_light: 0.0,
-                ..black()
+        match reaches_light(scene, light, light_shape, &ray) {
+            Reached::Nothing => records.push(black()),
+            Reached::Surface(hit, le) => {
+                records.push(reached_record(emitter, &reference, &s, wi, Some(&hit), le));
             }
-        } else if s.delta {
-            // The Dirac densities cancel: f / p_B is the sample's weight times L_e.
-            SampleRecord {
-                f: s.weight * le,
-                ..black()
-            }
-        } else {
-            SampleRecord {
-                f: s.weight * s.pdf * le,
-                p_bsdf: s.pdf,
-                p_light: emitter.pdf_direction(&reference, wi, hit.as_ref()),
-                delta: false,
-            }
-        });
+            Reached::Environment => match deferred.as_deref_mut() {
+                Some(deferred) => {
+                    deferred.0.push(DeferredLookup {
+                        record: records.len(),
+                        sample: s,
+                        wi,
+                    });
+                    records.push(SampleRecord::default());
+                }
+                None => {
+                    let le = emitter.eval(wi, None);
+                    records.push(reached_record(emitter, &reference, &s, wi, None, le));
+                }
+            },
+        }
     }
 }
 
