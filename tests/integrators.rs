@@ -1006,6 +1006,61 @@ fn bsdf_samples_take_a_fixed_count_of_numbers() {
     assert!(records.iter().any(|r| !r.is_black()) && records.iter().any(|r| r.is_black()));
 }
 
+/// A phase defers the environment lookups of its BSDF samples until after its light samples
+/// (a prefetch then has time to land): the records it fills in then are those the samples get
+/// when looked up at once, bit for bit, with both densities or one. On the envmap scene's
+/// glossy, mirror and diffuse surfaces, where BSDF rays are blocked, reach the map, and fail.
+#[test]
+fn deferred_environment_lookups_give_the_same_records() {
+    use lumis::integrators::estimator::{
+        DeferredLookups, Densities, ShadingPoint, draw_bsdf_samples, draw_bsdf_samples_deferring,
+    };
+    let loaded = common::load(&repo_path("scenes/envmap.ron"), &[]).unwrap();
+    let scene = &loaded.scene;
+    let light = scene
+        .environment
+        .expect("the envmap scene has an environment");
+    let (mut direct, mut deferring) = (Vec::new(), Vec::new());
+    let mut deferred = DeferredLookups::default();
+    let (mut points, mut reached, mut black) = (0, 0, 0);
+    for y in (0..scene.height).step_by(16) {
+        for x in (0..scene.width).step_by(16) {
+            let sample = lumis::integrator::CameraSample::new(scene, glam::UVec2::new(x, y), 0);
+            let Some(hit) = scene.intersect(&sample.ray) else {
+                continue;
+            };
+            let sp = ShadingPoint::new(scene, hit, -sample.ray.direction);
+            for densities in [Densities::Lit, Densities::Both] {
+                let (mut a, mut b) = (sample.sampler.clone(), sample.sampler.clone());
+                direct.clear();
+                deferring.clear();
+                draw_bsdf_samples(scene, &sp, light, 6, &mut a, &mut direct, densities);
+                draw_bsdf_samples_deferring(
+                    scene,
+                    &sp,
+                    light,
+                    6,
+                    &mut b,
+                    &mut deferring,
+                    densities,
+                    &mut deferred,
+                );
+                deferred.look_up(scene, &sp, light, &mut deferring);
+                assert_eq!(direct, deferring, "pixel ({x}, {y}), {densities:?}");
+                assert_eq!(a.next_1d().to_bits(), b.next_1d().to_bits());
+                reached += direct.iter().filter(|r| !r.is_black()).count();
+                black += direct.iter().filter(|r| r.is_black()).count();
+            }
+            points += 1;
+        }
+    }
+    // Samples that reached the map (deferred, then filled in) and samples that did not.
+    assert!(
+        points > 100 && reached > 1000 && black > 200,
+        "{points} shading points, {reached} samples reached the map, {black} did not"
+    );
+}
+
 #[test]
 fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
     use lumis::integrators::estimator::{
