@@ -41,6 +41,17 @@ pub trait Emitter: Send + Sync {
     fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32;
     /// Radiance emitted toward the reference point along `-wi`.
     fn eval(&self, wi: Vec3, hit: Option<&EmitterHit>) -> Rgb;
+    /// `eval` and `pdf_direction` of one direction, bit for bit as the two calls give them. The
+    /// default makes the two calls; an emitter whose two share work (an environment map's
+    /// conversion of the direction to map coordinates) overrides it.
+    fn eval_pdf(
+        &self,
+        reference: &ReferencePoint,
+        wi: Vec3,
+        hit: Option<&EmitterHit>,
+    ) -> (Rgb, f32) {
+        (self.eval(wi, hit), self.pdf_direction(reference, wi, hit))
+    }
     /// A hint that `eval` and `pdf_direction` of `wi` (a ray that may escape the scene) will
     /// follow once the ray is traced: an emitter whose lookup reads a large table starts the
     /// read now, so that it overlaps the traversal. The default does nothing.

@@ -533,6 +533,11 @@ impl Emitter for EnvironmentMap {
         self.lookup(self.to_uv(wi).0)
     }
 
+    fn eval_pdf(&self, _: &ReferencePoint, wi: Vec3, _: Option<&EmitterHit>) -> (Rgb, f32) {
+        let (uv, sin_theta) = self.to_uv(wi);
+        (self.lookup(uv), self.pdf_at(uv, sin_theta))
+    }
+
     fn prefetch_sample(&self, u: &dyn Fn() -> Vec2) {
         if let Sampling::Nearest(Some(d)) = &self.sampling {
             prefetch(&self.texels[d.prefetch_sample(u())]);

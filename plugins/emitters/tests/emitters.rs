@@ -293,6 +293,65 @@ fn samples_agree_with_eval_and_pdf() {
     }
 }
 
+/// `eval_pdf` gives `eval` and `pdf_direction` bit for bit: environment maps of both
+/// placements (which override it to convert each direction once), turned or not, in every
+/// direction; area lights (the trait's default) in the directions that reach them.
+#[test]
+fn eval_pdf_is_eval_and_pdf_direction_bit_for_bit() {
+    let mut s = test_sampler(4);
+    let same = |light: &dyn Emitter, r: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>| {
+        let (radiance, pdf) = light.eval_pdf(r, wi, hit);
+        let (expected_radiance, expected_pdf) =
+            (light.eval(wi, hit), light.pdf_direction(r, wi, hit));
+        assert_eq!(
+            radiance.to_array().map(f32::to_bits),
+            expected_radiance.to_array().map(f32::to_bits),
+            "{wi}"
+        );
+        assert_eq!(pdf.to_bits(), expected_pdf.to_bits(), "{wi}");
+        pdf > 0.0
+    };
+    for params in [
+        "\"file\": \"scenes/envmaps/studio.exr\"",
+        "\"file\": \"scenes/envmaps/studio.exr\", \"rotation\": 37",
+        "\"file\": \"scenes/envmaps/studio.exr\", \"interpolation\": \"bilinear\"",
+    ] {
+        let map = emitter("envmap", params, None);
+        let r = ReferencePoint {
+            position: Vec3::ZERO,
+        };
+        let mut positive = 0;
+        for _ in 0..20_000 {
+            let (a, b) = (s.next_2d(), s.next_2d());
+            let wi = Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5).normalize_or_zero();
+            positive += same(map.as_ref(), &r, wi, None) as usize;
+        }
+        assert!(
+            positive > 10_000,
+            "{params}: only {positive} directions of positive density"
+        );
+    }
+    for (name, light) in [
+        ("square", square_light()),
+        ("sphere", sphere_light(0.5, false)),
+    ] {
+        let from = Vec3::new(0.2, 1.5, -0.3);
+        let r = ReferencePoint { position: from };
+        let mut reached = 0;
+        for _ in 0..2000 {
+            let Some(ls) = light.light.sample_direction(&r, s.next_2d()) else {
+                continue;
+            };
+            let hit = light.hit(from, ls.wi);
+            reached += same(light.light.as_ref(), &r, ls.wi, hit.as_ref()) as usize;
+        }
+        assert!(
+            reached > 1000,
+            "{name}: only {reached} samples reached the light"
+        );
+    }
+}
+
 /// Irradiance on an unoccluded surface with normal n at x, by light sampling: mean and its
 /// standard error.
 fn irradiance(light: &dyn Emitter, x: Vec3, n: Vec3, samples: usize) -> (f64, f64) {

@@ -15,7 +15,7 @@
 use glam::Vec3;
 use lumis_core::accel::{Intersection, Ray};
 use lumis_core::bsdf::{Bsdf, BsdfSample};
-use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
+use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
@@ -273,16 +273,9 @@ fn reaches_light(scene: &Scene, light: usize, light_shape: Option<u32>, ray: &Ra
     Reached::Surface(h, emitter.eval(ray.direction, Some(&h)))
 }
 
-/// The record of a BSDF sample `s` (world direction `wi`) that reached its light (`hit` on an
-/// area light, None for the environment), from which radiance `le` arrives.
-fn reached_record(
-    emitter: &dyn Emitter,
-    reference: &ReferencePoint,
-    s: &BsdfSample,
-    wi: Vec3,
-    hit: Option<&EmitterHit>,
-    le: Rgb,
-) -> SampleRecord {
+/// The record of a BSDF sample `s` that reached its light, from which radiance `le` arrives;
+/// `p_light()` is the light's density in its direction (asked for only when it counts).
+fn reached_record(s: &BsdfSample, le: Rgb, p_light: impl FnOnce() -> f32) -> SampleRecord {
     let black = SampleRecord {
         p_bsdf: s.pdf,
         delta: s.delta,
@@ -301,7 +294,7 @@ fn reached_record(
         SampleRecord {
             f: s.weight * s.pdf * le,
             p_bsdf: s.pdf,
-            p_light: emitter.pdf_direction(reference, wi, hit),
+            p_light: p_light(),
             delta: false,
         }
     }
@@ -338,8 +331,9 @@ impl DeferredLookups {
             position: sp.hit.position,
         };
         for d in self.0.drain(..) {
-            let le = emitter.eval(d.wi, None);
-            records[d.record] = reached_record(emitter, &reference, &d.sample, d.wi, None, le);
+            // One conversion of the direction to map coordinates for both.
+            let (le, p_light) = emitter.eval_pdf(&reference, d.wi, None);
+            records[d.record] = reached_record(&d.sample, le, || p_light);
         }
     }
 }
@@ -431,9 +425,9 @@ fn draw_bsdf_records(
         }
         match reaches_light(scene, light, light_shape, &ray) {
             Reached::Nothing => records.push(black()),
-            Reached::Surface(hit, le) => {
-                records.push(reached_record(emitter, &reference, &s, wi, Some(&hit), le));
-            }
+            Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
+                emitter.pdf_direction(&reference, wi, Some(&hit))
+            })),
             Reached::Environment => match deferred.as_deref_mut() {
                 Some(deferred) => {
                     deferred.0.push(DeferredLookup {
@@ -444,8 +438,8 @@ fn draw_bsdf_records(
                     records.push(SampleRecord::default());
                 }
                 None => {
-                    let le = emitter.eval(wi, None);
-                    records.push(reached_record(emitter, &reference, &s, wi, None, le));
+                    let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
+                    records.push(reached_record(&s, le, || p_light));
                 }
             },
         }
