@@ -317,6 +317,21 @@ fn envmap(c: &mut Criterion) {
                 }
             })
         });
+        // What a BSDF sample that reaches the map asks: before and since `eval_pdf`.
+        group.bench_function("eval_then_pdf_direction", |b| {
+            b.iter(|| {
+                for &d in directions {
+                    black_box((map.eval(d, None), map.pdf_direction(&reference, d, None)));
+                }
+            })
+        });
+        group.bench_function("eval_pdf", |b| {
+            b.iter(|| {
+                for &d in directions {
+                    black_box(map.eval_pdf(&reference, d, None));
+                }
+            })
+        });
         group.finish();
     }
 }
