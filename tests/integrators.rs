@@ -992,6 +992,7 @@ fn bsdf_samples_take_a_fixed_count_of_numbers() {
                     &mut sample.sampler,
                     &mut records,
                     Densities::Lit,
+                    None,
                 );
                 assert_eq!(
                     sample.sampler.next_1d().to_bits(),
@@ -1013,7 +1014,7 @@ fn bsdf_samples_take_a_fixed_count_of_numbers() {
 #[test]
 fn deferred_environment_lookups_give_the_same_records() {
     use lumis::integrators::estimator::{
-        DeferredLookups, Densities, ShadingPoint, draw_bsdf_samples, draw_bsdf_samples_deferring,
+        DeferredLookups, Densities, ShadingPoint, draw_bsdf_samples,
     };
     let loaded = common::load(&repo_path("scenes/envmap.ron"), &[]).unwrap();
     let scene = &loaded.scene;
@@ -1034,8 +1035,9 @@ fn deferred_environment_lookups_give_the_same_records() {
                 let (mut a, mut b) = (sample.sampler.clone(), sample.sampler.clone());
                 direct.clear();
                 deferring.clear();
-                draw_bsdf_samples(scene, &sp, light, 6, &mut a, &mut direct, densities);
-                draw_bsdf_samples_deferring(
+                draw_bsdf_samples(scene, &sp, light, 6, &mut a, &mut direct, densities, None);
+                let later = Some(&mut deferred);
+                draw_bsdf_samples(
                     scene,
                     &sp,
                     light,
@@ -1043,7 +1045,7 @@ fn deferred_environment_lookups_give_the_same_records() {
                     &mut b,
                     &mut deferring,
                     densities,
-                    &mut deferred,
+                    later,
                 );
                 deferred.look_up(scene, &sp, light, &mut deferring);
                 assert_eq!(direct, deferring, "pixel ({x}, {y}), {densities:?}");
@@ -1096,13 +1098,21 @@ fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
         let sp = ShadingPoint::new(scene, scene.intersect(&ray).unwrap(), -ray.direction);
         let mut sampler = lumis::sampler::Sampler::new(11, 12, 13);
         let mut records = Vec::new();
-        let draw = if bsdf_sampling {
-            draw_bsdf_samples
-        } else {
-            draw_light_samples
-        };
         let both = Densities::Both;
-        draw(scene, &sp, light, COUNT, &mut sampler, &mut records, both);
+        if bsdf_sampling {
+            draw_bsdf_samples(
+                scene,
+                &sp,
+                light,
+                COUNT,
+                &mut sampler,
+                &mut records,
+                both,
+                None,
+            );
+        } else {
+            draw_light_samples(scene, &sp, light, COUNT, &mut sampler, &mut records, both);
+        }
         records
     };
     // The real hit and the light's own intersection differ by rounding: at most 4.8e-7 here.

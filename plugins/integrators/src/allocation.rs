@@ -5,8 +5,8 @@
 
 use crate::aovs::LightTally;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, DeferredLookups, Densities, SampleRecord, ShadingPoint,
-    draw_bsdf_samples_deferring, draw_light_samples,
+    BSDF_SAMPLE_NUMBERS, DeferredLookups, Densities, SampleRecord, ShadingPoint, draw_bsdf_samples,
+    draw_light_samples,
 };
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
@@ -217,7 +217,7 @@ impl<'a> LightSampling<'a> {
             };
             scene.emitters[light].prefetch_sample(&first_light_numbers);
         }
-        draw_bsdf_samples_deferring(
+        draw_bsdf_samples(
             scene,
             point,
             light,
@@ -225,7 +225,7 @@ impl<'a> LightSampling<'a> {
             sampler,
             records,
             densities,
-            deferred,
+            Some(deferred),
         );
         draw_light_samples(
             scene,

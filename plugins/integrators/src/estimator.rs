@@ -344,41 +344,12 @@ pub const BSDF_SAMPLE_NUMBERS: u32 = 3;
 
 /// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
 /// with the densities `densities` asks for. Each sample takes [`BSDF_SAMPLE_NUMBERS`] numbers
-/// from `sampler` (lobe choice, then direction), drawn or not.
+/// from `sampler` (lobe choice, then direction), drawn or not. Given `deferred`, the records of
+/// samples that reach the environment are left to it, and its [`DeferredLookups::look_up`] must
+/// fill them before they are read (after the phase's light samples); without, they are filled
+/// at once.
+#[allow(clippy::too_many_arguments)]
 pub fn draw_bsdf_samples(
-    scene: &Scene,
-    sp: &ShadingPoint,
-    light: usize,
-    count: u32,
-    sampler: &mut Sampler,
-    records: &mut Vec<SampleRecord>,
-    densities: Densities,
-) {
-    draw_bsdf_records(scene, sp, light, count, sampler, records, densities, None);
-}
-
-/// [`draw_bsdf_samples`], leaving the records of samples that reach the environment to
-/// `deferred`, whose [`DeferredLookups::look_up`] must fill them before they are read (after
-/// the phase's light samples).
-#[allow(clippy::too_many_arguments)]
-pub fn draw_bsdf_samples_deferring(
-    scene: &Scene,
-    sp: &ShadingPoint,
-    light: usize,
-    count: u32,
-    sampler: &mut Sampler,
-    records: &mut Vec<SampleRecord>,
-    densities: Densities,
-    deferred: &mut DeferredLookups,
-) {
-    let deferred = Some(deferred);
-    draw_bsdf_records(
-        scene, sp, light, count, sampler, records, densities, deferred,
-    );
-}
-
-#[allow(clippy::too_many_arguments)]
-fn draw_bsdf_records(
     scene: &Scene,
     sp: &ShadingPoint,
     light: usize,

@@ -233,6 +233,7 @@ pub fn measure_costs(scene: &Scene, grid: u32, batch: u32) -> Vec<Option<SampleC
                             &mut sampler,
                             &mut records,
                             Densities::Lit,
+                            None,
                         );
                     } else {
                         draw_light_samples(
