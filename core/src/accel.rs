@@ -281,9 +281,9 @@ fn intersect_sphere(ray: &Ray, t_max: f32, s: &Sphere) -> Option<f32> {
 /// must lie outside by more than rounding can move it: the end point is off by a few units of
 /// roundoff of the lengths that make it (`reach`, bounded by 1-norms), which moves its squared
 /// distance from the centre by about twice that times the radius, near the surface.
-/// [`SPHERE_END_MARGIN`] is 16 units of roundoff, 16 times the smallest constant with which
-/// `spheres_skipped_have_no_root_before_the_ray_ends` finds no root skipped (it finds one at a
-/// quarter of a unit): a tested margin, not a proof.
+/// [`SPHERE_END_MARGIN`] is 16 units of roundoff: `spheres_skipped_have_no_root_before_the_ray_ends`
+/// finds no root skipped with 1 unit, and finds one with a quarter (in between was not tried).
+/// A tested margin, not a proof.
 #[inline]
 fn ends_before_sphere(ray: &Ray, t_max: f32, s: &Sphere) -> bool {
     let f = ray.origin - s.center;
@@ -819,7 +819,7 @@ mod tests {
         let mut sampler = crate::sampler::Sampler::new(17, 0, 0);
         let mut uniform = move || sampler.next_1d();
         let mut pick = |n: u32| (uniform() * n as f32) as i32;
-        let mut unit = |pick: &mut dyn FnMut(u32) -> i32| loop {
+        let unit = |pick: &mut dyn FnMut(u32) -> i32| loop {
             let v =
                 Vec3::new(pick(2001) as f32, pick(2001) as f32, pick(2001) as f32) / 1000.0 - 1.0;
             if v.length_squared() > 1e-4 {
