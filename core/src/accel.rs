@@ -9,7 +9,7 @@
 use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use crate::math::{gamma, next_float_down, next_float_up};
 use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal};
-use crate::wide_bvh::{RayBoxTest, WideBvh, sphere_box};
+use crate::wide_bvh::{PacketBoxTest, RayBoxTest, WideBvh, sphere_box};
 use glam::Vec3;
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
@@ -30,6 +30,10 @@ pub fn take_ray_count() -> u64 {
 fn count_ray() {
     RAYS_TRACED.with(|c| c.set(c.get() + 1));
 }
+
+/// Most rays [`Geometry::intersect_packet`] traces as one packet (one 8-lane register holds a
+/// value of each).
+pub const PACKET_SIZE: usize = crate::wide_bvh::PACKET_RAYS;
 
 /// A ray `origin + t · direction`, t in (0, t_max). `direction` need not be unit length.
 #[derive(Clone, Copy, Debug)]
@@ -596,6 +600,82 @@ impl Geometry {
         })
     }
 
+    /// The closest intersections along rays that share an origin, such as a pinhole camera's
+    /// rays through one pixel: `hits[i]` is what [`Geometry::intersect`] returns for `rays[i]`,
+    /// found by traversing the BVH once for up to [`PACKET_SIZE`] rays
+    /// ([`WideBvh::closest_hit_packet`]). Each ray tests the primitives its own traversal would
+    /// test, so it finds the same closest hit; only where two primitives are hit at the same
+    /// distance may it return the other one. Rays that do not share an origin and direction
+    /// signs are traced one by one.
+    pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Intersection>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        for (rays, hits) in rays.chunks(PACKET_SIZE).zip(hits.chunks_mut(PACKET_SIZE)) {
+            let mut first_hits = [None; PACKET_SIZE];
+            let first_hits = &mut first_hits[..rays.len()];
+            self.first_hits(rays, first_hits);
+            for ((hit, first), ray) in hits.iter_mut().zip(first_hits.iter()).zip(rays) {
+                *hit = first.map(|first| self.surface(ray, &first));
+            }
+        }
+    }
+
+    /// [`Geometry::first_hit`] for each of at most [`PACKET_SIZE`] rays, as one packet if they
+    /// share an origin and direction signs.
+    fn first_hits(&self, rays: &[Ray], hits: &mut [Option<FirstHit>]) {
+        let n = rays.len();
+        let boxes: [RayBoxTest; PACKET_SIZE] = std::array::from_fn(|i| {
+            RayBoxTest::new(rays[i.min(n - 1)].origin, rays[i.min(n - 1)].direction)
+        });
+        let packet = match PacketBoxTest::new(&boxes[..n]) {
+            Some(packet) if n > 1 && !self.primitives.is_empty() => packet,
+            _ => {
+                for (hit, ray) in hits.iter_mut().zip(rays) {
+                    *hit = self.first_hit(ray);
+                }
+                return;
+            }
+        };
+        for _ in rays {
+            count_ray();
+        }
+        let shears: [RayShear; PACKET_SIZE] =
+            std::array::from_fn(|i| RayShear::new(rays[i.min(n - 1)].direction));
+        let mut t_max: [f32; PACKET_SIZE] = std::array::from_fn(|i| rays[i.min(n - 1)].t_max);
+        let mut barycentrics = [[0.0; 3]; PACKET_SIZE];
+        let mut closest = [None; PACKET_SIZE];
+        self.bvh.closest_hit_packet(
+            &packet,
+            &mut t_max[..n],
+            &mut closest[..n],
+            |r, slot, t_max| {
+                let ray = &rays[r];
+                let (t, b) = match &self.primitives[slot] {
+                    Primitive::Triangle { p, .. } => intersect_triangle(ray, &shears[r], t_max, p)?,
+                    Primitive::Sphere { sphere, .. } => {
+                        (intersect_sphere(ray, t_max, sphere)?, [0.0; 3])
+                    }
+                };
+                (t < t_max).then(|| {
+                    barycentrics[r] = b;
+                    t
+                })
+            },
+        );
+        for (r, hit) in hits.iter_mut().enumerate() {
+            *hit = closest[r].map(|slot| {
+                let shape = match &self.primitives[slot] {
+                    Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => *shape,
+                };
+                FirstHit {
+                    t: t_max[r],
+                    shape,
+                    slot: slot as u32,
+                    barycentrics: barycentrics[r],
+                }
+            });
+        }
+    }
+
     /// The intersection record of a hit [`Geometry::first_hit`] found along `ray`.
     pub fn surface(&self, ray: &Ray, hit: &FirstHit) -> Intersection {
         let t = hit.t;
@@ -778,6 +858,73 @@ mod tests {
             }
             Ok(())
         });
+    }
+
+    /// Packets of rays from one origin (nearly parallel as a pixel's camera rays, or spread
+    /// so that some do not share direction signs and are traced alone) get, ray by ray, the
+    /// intersection [`Geometry::intersect`] gives, bit for bit.
+    #[test]
+    fn packets_hit_what_each_ray_hits_alone() {
+        let packets = Cell::new(0usize);
+        let mut runner = TestRunner::new(Config {
+            cases: 64,
+            ..Config::default()
+        });
+        let packet = (
+            ray(),
+            prop::collection::vec(point(), 1..=PACKET_SIZE + 3),
+            0usize..3,
+        );
+        runner
+            .run(
+                &(scene(), prop::collection::vec(packet, 30)),
+                |(shapes, packets_drawn)| {
+                    let geometry = Geometry::new(shapes);
+                    for (ray, jitters, spread) in packets_drawn {
+                        let spread = [1e-4, 1e-2, 0.3][spread];
+                        let rays: Vec<Ray> = jitters
+                            .iter()
+                            .map(|j| Ray {
+                                direction: (ray.direction + *j * spread)
+                                    .normalize_or(ray.direction),
+                                ..ray
+                            })
+                            .collect();
+                        let boxes: Vec<RayBoxTest> = rays
+                            .iter()
+                            .map(|r| RayBoxTest::new(r.origin, r.direction))
+                            .collect();
+                        if rays.len() > 1
+                            && PacketBoxTest::new(&boxes[..rays.len().min(PACKET_SIZE)]).is_some()
+                        {
+                            packets.set(packets.get() + 1);
+                        }
+                        let mut hits = vec![None; rays.len()];
+                        geometry.intersect_packet(&rays, &mut hits);
+                        for (ray, hit) in rays.iter().zip(&hits) {
+                            let alone = geometry.intersect(ray);
+                            let key = |h: &Option<Intersection>| {
+                                h.map(|h| {
+                                    (
+                                        h.t.to_bits(),
+                                        h.shape,
+                                        h.primitive,
+                                        h.position.to_array().map(f32::to_bits),
+                                    )
+                                })
+                            };
+                            prop_assert_eq!(key(hit), key(&alone), "ray {:?}", ray);
+                        }
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+        assert!(
+            packets.get() > 64 * 10,
+            "only {} packets formed",
+            packets.get()
+        );
     }
 
     /// [`Geometry::may_meet`] on random scenes and rays: true for every shape the ray hits

@@ -7,7 +7,7 @@
 //! the samples of a pixel may be shaded in several parts (tiles, shards, sample ranges) whose
 //! sums add up exactly to those of one pass; averages are formed only in `resolve`.
 
-use crate::accel::Ray;
+use crate::accel::{Intersection, PACKET_SIZE, Ray};
 use crate::math::Rgb;
 use crate::output::Aov;
 use crate::sampler::Sampler;
@@ -25,6 +25,9 @@ pub struct CameraSample {
     pub sampler: Sampler,
     /// The primary ray through the (jittered) film position.
     pub ray: Ray,
+    /// The primary ray's closest intersection, if core traced it with other samples' rays
+    /// ([`CameraSample::trace_together`]).
+    traced: Option<Option<Intersection>>,
 }
 
 impl CameraSample {
@@ -46,6 +49,34 @@ impl CameraSample {
             index,
             sampler,
             ray: scene.camera.generate_ray(film),
+            traced: None,
+        }
+    }
+
+    /// The primary ray's closest intersection: the one [`CameraSample::trace_together`] found,
+    /// or traced now.
+    pub fn intersect(&self, scene: &Scene) -> Option<Intersection> {
+        match self.traced {
+            Some(hit) => hit,
+            None => scene.intersect(&self.ray),
+        }
+    }
+
+    /// Traces the primary rays of `samples` as packets ([`Geometry::intersect_packet`]): the
+    /// camera samples of one pixel share the camera's origin and nearly a direction, so they
+    /// visit the same nodes. Each sample keeps its hit for [`CameraSample::intersect`].
+    ///
+    /// [`Geometry::intersect_packet`]: crate::accel::Geometry::intersect_packet
+    pub fn trace_together(scene: &Scene, samples: &mut [CameraSample]) {
+        for samples in samples.chunks_mut(PACKET_SIZE) {
+            let rays: [Ray; PACKET_SIZE] =
+                std::array::from_fn(|i| samples[i.min(samples.len() - 1)].ray);
+            let mut hits = [None; PACKET_SIZE];
+            let n = samples.len();
+            scene.geometry.intersect_packet(&rays[..n], &mut hits[..n]);
+            for (sample, hit) in samples.iter_mut().zip(hits) {
+                sample.traced = Some(hit);
+            }
         }
     }
 }

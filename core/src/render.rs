@@ -1,7 +1,8 @@
 //! The render loop: square tiles rendered in parallel with rayon, assembled into a [`Film`].
 //!
 //! Core owns the camera samples: per pixel it runs the loop over the scene's `spp` camera
-//! samples ([`CameraSample::new`] draws each one's stream and ray), sums the colours the
+//! samples ([`CameraSample::new`] draws each one's stream and ray; their primary rays are traced
+//! eight at a time, [`CameraSample::trace_together`]), sums the colours the
 //! integrator returns (f64) and lets the integrator add its statistics to the pixel's sums. A
 //! tile's sums and sample counts are its primary data ([`TileSums`]); only then are they
 //! resolved into colours and AOV values. Sums over disjoint sets of camera samples add up, so
@@ -9,7 +10,7 @@
 //! tiles to [`FilmSums`], which add up and resolve, with the code that resolves a tile, to the
 //! one-process film bit for bit (docs/distributed.md).
 
-use crate::accel::take_ray_count;
+use crate::accel::{PACKET_SIZE, take_ray_count};
 use crate::film::Film;
 use crate::integrator::{CameraSample, Integrator};
 use crate::math::Rgb;
@@ -438,21 +439,28 @@ impl TileSums {
             stride,
         };
         let window = scene.window;
+        // The camera samples of a pixel, made and traced PACKET_SIZE at a time.
+        let mut batch = Vec::with_capacity(PACKET_SIZE);
         'pixels: for y in 0..size.y {
             for x in 0..size.x {
                 let i = (y * size.x + x) as usize;
                 let pixel = UVec2::new(window.x + origin.x + x, window.y + origin.y + y);
                 let sums = &mut tile.sums[i * stride..(i + 1) * stride];
-                for s in 0..scene.spp {
-                    if cancel.load(Ordering::Relaxed) {
-                        sums.fill(0.0);
-                        tile.color[i] = DVec3::ZERO;
-                        tile.samples[i] = 0;
-                        break 'pixels;
+                for first in (0..scene.spp).step_by(PACKET_SIZE) {
+                    let last = (first + PACKET_SIZE as u32).min(scene.spp);
+                    batch.clear();
+                    batch.extend((first..last).map(|s| CameraSample::new(scene, pixel, s)));
+                    CameraSample::trace_together(scene, &mut batch);
+                    for sample in &mut batch {
+                        if cancel.load(Ordering::Relaxed) {
+                            sums.fill(0.0);
+                            tile.color[i] = DVec3::ZERO;
+                            tile.samples[i] = 0;
+                            break 'pixels;
+                        }
+                        tile.color[i] += integrator.shade(scene, sample, sums).as_dvec3();
+                        tile.samples[i] += 1;
                     }
-                    let mut sample = CameraSample::new(scene, pixel, s);
-                    tile.color[i] += integrator.shade(scene, &mut sample, sums).as_dvec3();
-                    tile.samples[i] += 1;
                 }
             }
         }

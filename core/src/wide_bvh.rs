@@ -247,6 +247,40 @@ impl WideBvh {
         closest_hit_kernel(&self.nodes, ray, t_max, hit, node_test)
     }
 
+    /// The closest primitive along each ray of `packet`: `t_max[r]` is ray `r`'s bound,
+    /// lowered to each hit accepted; `hit(r, i, t_max)` tests primitive `i` for ray `r` and
+    /// returns its distance if it is hit before `t_max`; `closest[r]` is the last primitive
+    /// accepted for ray `r`. The packet visits every node one of its rays would visit alone,
+    /// and in each, every ray tests the leaves its own node test would let through: each ray
+    /// tests the primitives its own traversal would test, perhaps more, in another order.
+    #[inline]
+    pub fn closest_hit_packet(
+        &self,
+        packet: &PacketBoxTest,
+        t_max: &mut [f32],
+        closest: &mut [Option<usize>],
+        hit: impl FnMut(usize, usize, f32) -> Option<f32>,
+    ) {
+        closest.fill(None);
+        if self.nodes.is_empty() {
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { closest_hit_packet_avx2(&self.nodes, packet, t_max, closest, hit) };
+        }
+        closest_hit_packet_kernel(
+            &self.nodes,
+            packet,
+            t_max,
+            closest,
+            hit,
+            packet_node_test,
+            rays_entering,
+        )
+    }
+
     /// Whether `blocks(i)` holds for a primitive whose box the ray meets before `t_max`
     /// (stopping at the first).
     #[inline]
@@ -407,6 +441,67 @@ impl RayBoxTest {
     }
 }
 
+/// Up to [`PACKET_RAYS`] rays that share an origin and the signs of their directions (a
+/// pinhole camera's rays through one pixel), tested against a node's children together: per
+/// axis, the interval of their reciprocal directions (Boulos et al., "Packet-based Whitted and
+/// distribution ray tracing", 2007). A child passes if one of the rays might enter it: each
+/// slab distance is the smaller (near plane) or the larger (far plane) of the distances
+/// computed with the interval's two ends, and since `(plane − origin) · inv` is monotone in
+/// `inv` and rounding is monotone, that bounds the same rounded distance computed with any
+/// ray's own reciprocal, as [`node_test`] computes it. So the packet enters every child any of
+/// its rays would enter alone. The rays' own reciprocals, lane by lane, then decide which rays
+/// enter a leaf ([`rays_entering`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PacketBoxTest {
+    origin: [f32; 3],
+    /// Per axis, the smallest and the largest reciprocal direction of the rays.
+    inv_low: [f32; 3],
+    inv_high: [f32; 3],
+    /// Per axis, each ray's reciprocal direction (lanes past the rays repeat the last one).
+    inv: [[f32; PACKET_RAYS]; 3],
+    /// As [`RayBoxTest::near`], the same for every ray of the packet.
+    near: [usize; 3],
+    rays: usize,
+}
+
+/// Most rays in a [`PacketBoxTest`]: one 8-lane register holds one value of each.
+pub const PACKET_RAYS: usize = 8;
+
+impl PacketBoxTest {
+    /// The packet of `rays`; `None` if there are none or more than [`PACKET_RAYS`], or if they
+    /// do not all share their origin and the sign of each direction component (trace those
+    /// one by one).
+    pub fn new(rays: &[RayBoxTest]) -> Option<Self> {
+        let first = rays.first()?;
+        if rays.len() > PACKET_RAYS {
+            return None;
+        }
+        let last = rays[rays.len() - 1];
+        let mut packet = PacketBoxTest {
+            origin: first.origin,
+            inv_low: first.inv_direction,
+            inv_high: first.inv_direction,
+            inv: [0, 1, 2].map(|axis| {
+                std::array::from_fn(|r| rays.get(r).unwrap_or(&last).inv_direction[axis])
+            }),
+            near: first.near,
+            rays: rays.len(),
+        };
+        for ray in &rays[1..] {
+            if ray.near != first.near
+                || ray.origin.map(f32::to_bits) != first.origin.map(f32::to_bits)
+            {
+                return None;
+            }
+            for axis in 0..3 {
+                packet.inv_low[axis] = packet.inv_low[axis].min(ray.inv_direction[axis]);
+                packet.inv_high[axis] = packet.inv_high[axis].max(ray.inv_direction[axis]);
+            }
+        }
+        Some(packet)
+    }
+}
+
 /// 1 + 2γ₃: the far distance's enlargement that makes the slab test conservative.
 fn far_scale() -> f32 {
     1.0 + 2.0 * gamma(3)
@@ -440,6 +535,66 @@ fn node_test(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
     (mask, t_near)
 }
 
+/// [`node_test`] for a packet: the children one of its rays may enter before `t_max` (the
+/// largest of the rays' bounds), and distances no greater than any of theirs.
+#[inline(always)]
+fn packet_node_test(node: &WideNode, packet: &PacketBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    let mut t_near = [0.0f32; 8];
+    let mut t_far = [t_max; 8];
+    for axis in 0..3 {
+        let near_planes = &node.bounds[packet.near[axis]];
+        let far_planes = &node.bounds[packet.near[axis] ^ 1];
+        let o = packet.origin[axis];
+        let (low, high) = (packet.inv_low[axis], packet.inv_high[axis]);
+        for lane in 0..8 {
+            let (near, far) = (near_planes[lane] - o, far_planes[lane] - o);
+            let (n_low, n_high) = (near * low, near * high);
+            let (f_low, f_high) = (far * low, far * high);
+            let n = if n_low < n_high { n_low } else { n_high };
+            let f = if f_low > f_high { f_low } else { f_high };
+            t_near[lane] = if n > t_near[lane] { n } else { t_near[lane] };
+            t_far[lane] = if f < t_far[lane] { f } else { t_far[lane] };
+        }
+    }
+    let scale = far_scale();
+    let mut mask = 0u32;
+    for lane in 0..8 {
+        mask |= ((t_near[lane] <= t_far[lane] * scale) as u32) << lane;
+    }
+    (mask, t_near)
+}
+
+/// The rays of `packet` that enter child `lane` of `node` before their `t_max` (a bit per
+/// ray; lanes of `t_max` past the rays must hold a negative bound). Each ray's lane computes
+/// what [`node_test`] computes for that ray alone, operation for operation.
+#[inline(always)]
+fn rays_entering(
+    node: &WideNode,
+    lane: usize,
+    packet: &PacketBoxTest,
+    t_max: &[f32; PACKET_RAYS],
+) -> u32 {
+    let mut t_near = [0.0f32; PACKET_RAYS];
+    let mut t_far = *t_max;
+    for axis in 0..3 {
+        let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
+        let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
+        let inv = &packet.inv[axis];
+        for r in 0..PACKET_RAYS {
+            let n = near_plane * inv[r];
+            let f = far_plane * inv[r];
+            t_near[r] = if n > t_near[r] { n } else { t_near[r] };
+            t_far[r] = if f < t_far[r] { f } else { t_far[r] };
+        }
+    }
+    let scale = far_scale();
+    let mut mask = 0u32;
+    for r in 0..PACKET_RAYS {
+        mask |= ((t_near[r] <= t_far[r] * scale) as u32) << r;
+    }
+    mask
+}
+
 /// The kernel compiled for AVX2 (the node test and the caller's primitive tests inlined).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
@@ -462,6 +617,87 @@ fn any_hit_avx2(
     blocks: impl FnMut(usize) -> bool,
 ) -> bool {
     any_hit_kernel(nodes, ray, t_max, blocks, |n, r, t| node_test_avx2(n, r, t))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn closest_hit_packet_avx2(
+    nodes: &[WideNode],
+    packet: &PacketBoxTest,
+    t_max: &mut [f32],
+    closest: &mut [Option<usize>],
+    hit: impl FnMut(usize, usize, f32) -> Option<f32>,
+) {
+    closest_hit_packet_kernel(
+        nodes,
+        packet,
+        t_max,
+        closest,
+        hit,
+        |n, p, t| packet_node_test_avx2(n, p, t),
+        |n, lane, p, t| rays_entering_avx2(n, lane, p, t),
+    )
+}
+
+/// [`rays_entering`] in AVX intrinsics, the same operations in the same order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn rays_entering_avx2(
+    node: &WideNode,
+    lane: usize,
+    packet: &PacketBoxTest,
+    t_max: &[f32; PACKET_RAYS],
+) -> u32 {
+    use std::arch::x86_64::*;
+    let mut t_near = _mm256_setzero_ps();
+    // SAFETY: `t_max` holds 8 f32.
+    let mut t_far = unsafe { _mm256_loadu_ps(t_max.as_ptr()) };
+    for axis in 0..3 {
+        let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
+        let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
+        // SAFETY: each row of `inv` is 8 f32.
+        let inv = unsafe { _mm256_loadu_ps(packet.inv[axis].as_ptr()) };
+        let n = _mm256_mul_ps(_mm256_set1_ps(near_plane), inv);
+        let f = _mm256_mul_ps(_mm256_set1_ps(far_plane), inv);
+        t_near = _mm256_max_ps(n, t_near);
+        t_far = _mm256_min_ps(f, t_far);
+    }
+    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32
+}
+
+/// [`packet_node_test`] in AVX intrinsics, the same operations in the same order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn packet_node_test_avx2(node: &WideNode, packet: &PacketBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+    let mut t_near = _mm256_setzero_ps();
+    let mut t_far = _mm256_set1_ps(t_max);
+    for axis in 0..3 {
+        // SAFETY: each row of `bounds` is 8 f32.
+        let (near_planes, far_planes) = unsafe {
+            (
+                _mm256_loadu_ps(node.bounds[packet.near[axis]].as_ptr()),
+                _mm256_loadu_ps(node.bounds[packet.near[axis] ^ 1].as_ptr()),
+            )
+        };
+        let o = _mm256_set1_ps(packet.origin[axis]);
+        let low = _mm256_set1_ps(packet.inv_low[axis]);
+        let high = _mm256_set1_ps(packet.inv_high[axis]);
+        let (near, far) = (_mm256_sub_ps(near_planes, o), _mm256_sub_ps(far_planes, o));
+        let n = _mm256_min_ps(_mm256_mul_ps(near, low), _mm256_mul_ps(near, high));
+        let f = _mm256_max_ps(_mm256_mul_ps(far, low), _mm256_mul_ps(far, high));
+        t_near = _mm256_max_ps(n, t_near);
+        t_far = _mm256_min_ps(f, t_far);
+    }
+    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
+    let mut near = [0.0f32; 8];
+    // SAFETY: `near` holds 8 f32.
+    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), t_near) };
+    (mask, near)
 }
 
 /// [`node_test`] in AVX intrinsics: the same operations in the same order (so the same
@@ -566,6 +802,93 @@ fn closest_hit_kernel(
                 return closest;
             };
             if t_enter <= t_max * scale {
+                node = next;
+                break;
+            }
+        }
+    }
+}
+
+/// [`closest_hit_kernel`] for a packet: the node test is the packet's, bounded by the largest
+/// of the rays' `t_max`; the rays that enter each leaf are found as the node is visited, with
+/// their bounds as they were then, as each ray's own traversal would find them.
+#[inline(always)]
+fn closest_hit_packet_kernel(
+    nodes: &[WideNode],
+    packet: &PacketBoxTest,
+    t_max: &mut [f32],
+    closest: &mut [Option<usize>],
+    mut hit: impl FnMut(usize, usize, f32) -> Option<f32>,
+    node_test: impl Fn(&WideNode, &PacketBoxTest, f32) -> (u32, [f32; 8]),
+    rays_entering: impl Fn(&WideNode, usize, &PacketBoxTest, &[f32; PACKET_RAYS]) -> u32,
+) {
+    // Lanes past the rays never enter anything.
+    let mut ray_t_max = [-1.0f32; PACKET_RAYS];
+    ray_t_max[..packet.rays].copy_from_slice(&t_max[..packet.rays]);
+    let largest = |t_max: &[f32; PACKET_RAYS]| t_max.iter().copied().fold(0.0f32, f32::max);
+    let mut stack = Stack::new();
+    let mut node = 0u32;
+    let scale = far_scale();
+    let mut packet_t_max = largest(&ray_t_max);
+    loop {
+        let current = &nodes[node as usize];
+        let (mut mask, t_near) = node_test(current, packet, packet_t_max);
+        let mut inner = [(0u32, 0.0f32); 8];
+        let mut inner_count = 0;
+        let mut leaves = 0u32;
+        let mut entering = [0u32; 8];
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let child = current.child[lane];
+            if child & LEAF != 0 {
+                leaves |= 1 << lane;
+                entering[lane] = rays_entering(current, lane, packet, &ray_t_max);
+            } else {
+                prefetch_node(&nodes[child as usize]);
+                let entry = (child, t_near[lane]);
+                let mut i = inner_count;
+                while i > 0 && inner[i - 1].1 > entry.1 {
+                    inner[i] = inner[i - 1];
+                    i -= 1;
+                }
+                inner[i] = entry;
+                inner_count += 1;
+            }
+        }
+        if leaves != 0 {
+            while leaves != 0 {
+                let lane = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let first = (current.child[lane] & !LEAF) as usize;
+                for primitive in first..first + current.count[lane] as usize {
+                    let mut rays = entering[lane];
+                    while rays != 0 {
+                        let r = rays.trailing_zeros() as usize;
+                        rays &= rays - 1;
+                        if let Some(t) = hit(r, primitive, ray_t_max[r]) {
+                            ray_t_max[r] = t;
+                            closest[r] = Some(primitive);
+                        }
+                    }
+                }
+            }
+            packet_t_max = largest(&ray_t_max);
+        }
+        let bound = packet_t_max * scale;
+        if inner_count > 0 && inner[0].1 <= bound {
+            for &entry in inner[1..inner_count].iter().rev() {
+                stack.push(entry);
+            }
+            node = inner[0].0;
+            continue;
+        }
+        loop {
+            let Some((next, t_enter)) = stack.pop() else {
+                t_max[..packet.rays].copy_from_slice(&ray_t_max[..packet.rays]);
+                return;
+            };
+            if t_enter <= packet_t_max * scale {
                 node = next;
                 break;
             }
@@ -749,5 +1072,193 @@ mod tests {
             assert_eq!(mask, mask_avx2);
             assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
         }
+    }
+
+    /// A packet's node test lets through every child one of its rays' own test lets through,
+    /// at a distance no greater than the ray's (so the packet visits every node its rays
+    /// would); the rays found entering a child are those whose own test enters it; the AVX2
+    /// forms give the portable ones' answers bit for bit. Random boxes,
+    /// empty slots, packets from tight (one pixel) to wide, zero direction components.
+    #[test]
+    fn packet_node_tests_let_through_what_their_rays_do() {
+        let mut sampler = crate::sampler::Sampler::new(17, 0, 0);
+        let mut value = || {
+            let u = sampler.next_2d();
+            (u.x - 0.5) * 10.0 * u.y
+        };
+        let mut passed = [0usize; 2];
+        for round in 0..5000 {
+            let mut node = WideNode::EMPTY;
+            for lane in 0..(round % 9) {
+                for axis in 0..3 {
+                    let (a, b) = (value(), value());
+                    node.bounds[2 * axis][lane] = a.min(b);
+                    node.bounds[2 * axis + 1][lane] = a.max(b);
+                }
+            }
+            let origin = Vec3::new(value(), value(), value());
+            let mut base = Vec3::new(value(), value(), value());
+            if round % 7 == 0 {
+                base[round % 3] = 0.0;
+            }
+            let spread = [1e-4, 1e-2, 0.3][round % 3];
+            let rays: Vec<RayBoxTest> = (0..1 + round % 8)
+                .map(|_| {
+                    let jitter = Vec3::new(value(), value(), value()) * spread;
+                    // Keep the signs (zeros stay zeros), as a packet needs.
+                    let d = (base + jitter * base.abs()).normalize_or(base);
+                    RayBoxTest::new(origin, d)
+                })
+                .collect();
+            let Some(packet) = PacketBoxTest::new(&rays) else {
+                continue;
+            };
+            let t_maxes: Vec<f32> = rays
+                .iter()
+                .map(|_| {
+                    if round % 4 == 0 {
+                        f32::INFINITY
+                    } else {
+                        value().abs()
+                    }
+                })
+                .collect();
+            let packet_t_max = t_maxes.iter().copied().fold(0.0, f32::max);
+            let (mask, near) = packet_node_test(&node, &packet, packet_t_max);
+            let mut ray_t_max = [-1.0f32; PACKET_RAYS];
+            ray_t_max[..rays.len()].copy_from_slice(&t_maxes);
+            for lane in 0..8 {
+                let entering = rays_entering(&node, lane, &packet, &ray_t_max);
+                let alone = rays
+                    .iter()
+                    .zip(&t_maxes)
+                    .enumerate()
+                    .fold(0, |m, (r, (ray, &t))| {
+                        m | ((node_test(&node, ray, t).0 >> lane) & 1) << r
+                    });
+                assert_eq!(entering, alone, "round {round}, lane {lane}");
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: AVX2 is present (checked just above).
+                    let avx2 = unsafe { rays_entering_avx2(&node, lane, &packet, &ray_t_max) };
+                    assert_eq!(avx2, alone, "round {round}, lane {lane}, AVX2");
+                }
+            }
+            for (ray, &t_max) in rays.iter().zip(&t_maxes) {
+                let (ray_mask, ray_near) = node_test(&node, ray, t_max);
+                assert_eq!(
+                    ray_mask & !mask,
+                    0,
+                    "round {round}: a child a ray enters is culled"
+                );
+                for lane in 0..8 {
+                    if ray_mask & (1 << lane) != 0 {
+                        assert!(near[lane] <= ray_near[lane], "round {round}, lane {lane}");
+                    }
+                }
+                passed[0] += ray_mask.count_ones() as usize;
+            }
+            passed[1] += mask.count_ones() as usize;
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 is present (checked just above).
+                let (mask_avx2, near_avx2) =
+                    unsafe { packet_node_test_avx2(&node, &packet, packet_t_max) };
+                assert_eq!(mask, mask_avx2);
+                assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
+            }
+        }
+        assert!(
+            passed[0] > 2000 && passed[1] > 1000,
+            "too few children entered: {passed:?}"
+        );
+    }
+
+    /// Packets find each ray's closest box as the ray alone finds it, with the portable kernel
+    /// and with the dispatched one (random boxes standing for primitives, as above).
+    #[test]
+    fn packets_find_each_rays_closest_hit() {
+        let mut sampler = crate::sampler::Sampler::new(23, 0, 0);
+        let mut point = |scale: f32| {
+            let (a, b) = (sampler.next_2d(), sampler.next_2d());
+            Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5) * scale
+        };
+        let boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let c = point(20.0);
+                let h = point(0.6).abs();
+                Aabb::new((c - h).into(), (c + h).into())
+            })
+            .collect();
+        let (bvh, order) = WideBvh::build(&boxes, 1.0);
+        let leaf_boxes: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
+        let entry = |test: &RayBoxTest, b: &Aabb, t_max: f32| {
+            let mut node = WideNode::EMPTY;
+            for axis in 0..3 {
+                node.bounds[2 * axis][0] = b.min[axis];
+                node.bounds[2 * axis + 1][0] = b.max[axis];
+            }
+            let (mask, t_near) = node_test(&node, test, f32::INFINITY);
+            (mask & 1 == 1 && t_near[0] < t_max).then_some(t_near[0])
+        };
+        let (mut packets, mut hits) = (0, 0);
+        for round in 0..600 {
+            let origin = point(30.0);
+            let base = point(1.0);
+            let spread = [1e-3, 3e-2, 0.3][round % 3];
+            let rays: Vec<RayBoxTest> = (0..1 + round % 8)
+                .map(|_| RayBoxTest::new(origin, base + point(spread)))
+                .collect();
+            let Some(packet) = PacketBoxTest::new(&rays) else {
+                continue;
+            };
+            packets += 1;
+            let t_max0: Vec<f32> = (0..rays.len())
+                .map(|r| {
+                    if (round + r) % 2 == 0 {
+                        f32::INFINITY
+                    } else {
+                        20.0
+                    }
+                })
+                .collect();
+            let alone: Vec<Option<f32>> = rays
+                .iter()
+                .zip(&t_max0)
+                .map(|(ray, &t_max)| {
+                    let hit = |i: usize, t: f32| entry(ray, &leaf_boxes[i], t);
+                    bvh.closest_hit(ray, t_max, hit)
+                        .map(|i| hit(i, t_max).unwrap())
+                })
+                .collect();
+            hits += alone.iter().flatten().count();
+            let hit = |r: usize, i: usize, t: f32| entry(&rays[r], &leaf_boxes[i], t);
+            let mut closest = vec![None; rays.len()];
+            let mut t_max = t_max0.clone();
+            closest_hit_packet_kernel(
+                &bvh.nodes,
+                &packet,
+                &mut t_max,
+                &mut closest,
+                hit,
+                packet_node_test,
+                rays_entering,
+            );
+            let found = |closest: &[Option<usize>]| -> Vec<Option<f32>> {
+                closest
+                    .iter()
+                    .enumerate()
+                    .map(|(r, c)| c.map(|i| hit(r, i, t_max0[r]).unwrap()))
+                    .collect()
+            };
+            assert_eq!(found(&closest), alone, "round {round}, portable kernel");
+            let mut t_max = t_max0.clone();
+            bvh.closest_hit_packet(&packet, &mut t_max, &mut closest, hit);
+            assert_eq!(found(&closest), alone, "round {round}, dispatched kernel");
+        }
+        assert!(
+            packets > 300 && hits > 200,
+            "{packets} packets, {hits} hits"
+        );
     }
 }

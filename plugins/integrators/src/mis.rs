@@ -91,7 +91,7 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
 
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
         let ray = sample.ray;
-        let Some(hit) = scene.intersect(&ray) else {
+        let Some(hit) = sample.intersect(scene) else {
             return scene.environment_radiance(ray.direction);
         };
         let mut radiance = emitted(scene, &hit, ray.direction);
