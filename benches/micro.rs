@@ -4,7 +4,7 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec2, Vec3};
-use lumis::accel::{Geometry, Ray};
+use lumis::accel::{Geometry, PACKET_SIZE, Ray};
 use lumis::bsdf::Bsdf;
 use lumis::emitter::{Emitter, ReferencePoint};
 use lumis::integrator::CameraSample;
@@ -137,9 +137,38 @@ fn ray_sets(mesh: &Mesh) -> [(&'static str, Vec<Ray>); 2] {
     [("coherent", coherent), ("incoherent", incoherent)]
 }
 
+/// Camera rays as a render traces them: 8 jittered rays through each of 512 pixels (every 8th
+/// of a 256 × 128 film over the dragon, so pixels about as large as in the race's dragon
+/// scene), a pixel's rays one after the other.
+fn pixel_rays(mesh: &Mesh) -> Vec<Ray> {
+    let (lo, hi) = mesh.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let (center, extent) = ((lo + hi) * 0.5, hi - lo);
+    let eye = center + Vec3::new(0.0, 0.0, 2.5 * extent.max_element());
+    let (width, height) = (32, BATCH / PACKET_SIZE / 32);
+    let mut sampler = Sampler::new(3, 0, 0);
+    (0..BATCH)
+        .map(|i| {
+            let pixel = i / PACKET_SIZE;
+            let jitter = sampler.next_2d();
+            let x = ((8 * (pixel % width)) as f32 + jitter.x) / (8 * width) as f32;
+            let y = ((8 * (pixel / width)) as f32 + jitter.y) / (8 * height) as f32;
+            let target = center + Vec3::new((x - 0.5) * extent.x, (y - 0.5) * extent.y, 0.0);
+            Ray {
+                origin: eye,
+                direction: (target - eye).normalize(),
+                t_max: f32::INFINITY,
+            }
+        })
+        .collect()
+}
+
 fn ray_queries(c: &mut Criterion) {
     let mesh = load_mesh(&repo("scenes/meshes/dragon_res3.glb"));
     let sets = ray_sets(&mesh);
+    let pixels = pixel_rays(&mesh);
     let geometry = Geometry::new(vec![ShapeGeometry::Mesh(mesh)]);
     let mut group = c.benchmark_group("rays_dragon_res3");
     group.throughput(Throughput::Elements(BATCH as u64));
@@ -166,6 +195,23 @@ fn ray_queries(c: &mut Criterion) {
             })
         });
     }
+    // A pixel's camera rays traced alone and as one packet (what the render loop does).
+    group.bench_function("closest_hit_pixels_alone", |b| {
+        b.iter(|| {
+            for ray in &pixels {
+                black_box(geometry.intersect(ray));
+            }
+        })
+    });
+    let mut hits = vec![None; PACKET_SIZE];
+    group.bench_function("closest_hit_pixels_packets", |b| {
+        b.iter(|| {
+            for packet in pixels.chunks(PACKET_SIZE) {
+                geometry.intersect_packet(packet, &mut hits);
+                black_box(&hits);
+            }
+        })
+    });
     group.finish();
 }
 
