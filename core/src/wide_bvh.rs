@@ -976,34 +976,47 @@ mod tests {
         }
     }
 
+    /// A point uniform in the cube of side `scale` centred on the origin.
+    fn random_point(sampler: &mut crate::sampler::Sampler, scale: f32) -> Vec3 {
+        let (a, b) = (sampler.next_2d(), sampler.next_2d());
+        Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5) * scale
+    }
+
+    /// A tree over 3000 random boxes (centres in a cube of side 20, half-sizes up to 0.3)
+    /// standing for primitives, and the boxes in its leaf order.
+    fn random_box_tree(sampler: &mut crate::sampler::Sampler) -> (WideBvh, Vec<Aabb>) {
+        let boxes: Vec<Aabb> = (0..3000)
+            .map(|_| {
+                let c = random_point(sampler, 20.0);
+                let h = random_point(sampler, 0.6).abs();
+                Aabb::new((c - h).into(), (c + h).into())
+            })
+            .collect();
+        let (bvh, order) = WideBvh::build(&boxes, 1.0);
+        let leaf_boxes = order.iter().map(|&i| boxes[i as usize]).collect();
+        (bvh, leaf_boxes)
+    }
+
+    /// A box primitive's distance: where the ray enters it (lane 0 of a one-child node), if
+    /// before `t_max`.
+    fn box_entry(test: &RayBoxTest, b: &Aabb, t_max: f32) -> Option<f32> {
+        let mut node = WideNode::EMPTY;
+        for axis in 0..3 {
+            node.bounds[2 * axis][0] = b.min[axis];
+            node.bounds[2 * axis + 1][0] = b.max[axis];
+        }
+        let (mask, t_near) = node_test(&node, test, f32::INFINITY);
+        (mask & 1 == 1 && t_near[0] < t_max).then_some(t_near[0])
+    }
+
     /// The kernel compiled for the baseline (what processors without AVX2 run) and the one the
     /// dispatch picks here give the brute-force answer on random boxes standing for primitives.
     #[test]
     fn both_kernels_find_the_closest_and_any_hit() {
         let mut sampler = crate::sampler::Sampler::new(11, 0, 0);
-        let mut point = |scale: f32| {
-            let (a, b) = (sampler.next_2d(), sampler.next_2d());
-            Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5) * scale
-        };
-        let boxes: Vec<Aabb> = (0..3000)
-            .map(|_| {
-                let c = point(20.0);
-                let h = point(0.6).abs();
-                Aabb::new((c - h).into(), (c + h).into())
-            })
-            .collect();
-        let (bvh, order) = WideBvh::build(&boxes, 1.0);
-        let leaf_boxes: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
-        // A primitive's distance: where the ray enters its box (lane 0 of a one-child node).
-        let entry = |test: &RayBoxTest, b: &Aabb, t_max: f32| {
-            let mut node = WideNode::EMPTY;
-            for axis in 0..3 {
-                node.bounds[2 * axis][0] = b.min[axis];
-                node.bounds[2 * axis + 1][0] = b.max[axis];
-            }
-            let (mask, t_near) = node_test(&node, test, f32::INFINITY);
-            (mask & 1 == 1 && t_near[0] < t_max).then_some(t_near[0])
-        };
+        let (bvh, leaf_boxes) = random_box_tree(&mut sampler);
+        let mut point = |scale: f32| random_point(&mut sampler, scale);
+        let entry = box_entry;
         let mut hits = 0;
         for _ in 0..2000 {
             let origin = point(30.0);
@@ -1179,28 +1192,9 @@ mod tests {
     #[test]
     fn packets_find_each_rays_closest_hit() {
         let mut sampler = crate::sampler::Sampler::new(23, 0, 0);
-        let mut point = |scale: f32| {
-            let (a, b) = (sampler.next_2d(), sampler.next_2d());
-            Vec3::new(a.x - 0.5, a.y - 0.5, b.x - 0.5) * scale
-        };
-        let boxes: Vec<Aabb> = (0..3000)
-            .map(|_| {
-                let c = point(20.0);
-                let h = point(0.6).abs();
-                Aabb::new((c - h).into(), (c + h).into())
-            })
-            .collect();
-        let (bvh, order) = WideBvh::build(&boxes, 1.0);
-        let leaf_boxes: Vec<Aabb> = order.iter().map(|&i| boxes[i as usize]).collect();
-        let entry = |test: &RayBoxTest, b: &Aabb, t_max: f32| {
-            let mut node = WideNode::EMPTY;
-            for axis in 0..3 {
-                node.bounds[2 * axis][0] = b.min[axis];
-                node.bounds[2 * axis + 1][0] = b.max[axis];
-            }
-            let (mask, t_near) = node_test(&node, test, f32::INFINITY);
-            (mask & 1 == 1 && t_near[0] < t_max).then_some(t_near[0])
-        };
+        let (bvh, leaf_boxes) = random_box_tree(&mut sampler);
+        let mut point = |scale: f32| random_point(&mut sampler, scale);
+        let entry = box_entry;
         let (mut packets, mut hits) = (0, 0);
         for round in 0..600 {
             let origin = point(30.0);
