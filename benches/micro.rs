@@ -137,9 +137,9 @@ fn ray_sets(mesh: &Mesh) -> [(&'static str, Vec<Ray>); 2] {
     [("coherent", coherent), ("incoherent", incoherent)]
 }
 
-/// Camera rays as a render traces them: 8 jittered rays through each of 512 pixels (every 8th
-/// of a 256 × 128 film over the dragon, so pixels about as large as in the race's dragon
-/// scene), a pixel's rays one after the other.
+/// Camera rays as a render traces them: `PACKET_SIZE` (16) jittered rays through each of 256
+/// pixels (every 8th of a 256 × 64 film over the dragon, so pixels about as large as in the
+/// race's dragon scene), a pixel's rays one after the other.
 fn pixel_rays(mesh: &Mesh) -> Vec<Ray> {
     let (lo, hi) = mesh.positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),

@@ -31,8 +31,7 @@ fn count_ray() {
     RAYS_TRACED.with(|c| c.set(c.get() + 1));
 }
 
-/// Most rays [`Geometry::intersect_packet`] traces as one packet (one 8-lane register holds a
-/// value of each).
+/// Most rays [`Geometry::intersect_packet`] traces as one packet.
 pub const PACKET_SIZE: usize = crate::wide_bvh::PACKET_RAYS;
 
 /// A ray `origin + t · direction`, t in (0, t_max). `direction` need not be unit length.

@@ -2,7 +2,7 @@
 //!
 //! Core owns the camera samples: per pixel it runs the loop over the scene's `spp` camera
 //! samples ([`CameraSample::new`] draws each one's stream and ray; their primary rays are traced
-//! eight at a time, [`CameraSample::trace_together`]), sums the colours the
+//! sixteen at a time, [`CameraSample::trace_together`]), sums the colours the
 //! integrator returns (f64) and lets the integrator add its statistics to the pixel's sums. A
 //! tile's sums and sample counts are its primary data ([`TileSums`]); only then are they
 //! resolved into colours and AOV values. Sums over disjoint sets of camera samples add up, so

@@ -464,8 +464,10 @@ pub struct PacketBoxTest {
     rays: usize,
 }
 
-/// Most rays in a [`PacketBoxTest`]: one 8-lane register holds one value of each.
-pub const PACKET_RAYS: usize = 8;
+/// Most rays in a [`PacketBoxTest`]: two 8-lane registers hold one value of each. 16 rather
+/// than 8: the node test is paid once per packet, and a pixel's samples hardly widen the
+/// packet (the dragon, 15 rounds: × 1.053 [1.020, 1.086], docs/performance.md).
+pub const PACKET_RAYS: usize = 16;
 
 impl PacketBoxTest {
     /// The packet of `rays`; `None` if there are none or more than [`PACKET_RAYS`], or if they
@@ -650,21 +652,26 @@ fn rays_entering_avx2(
     t_max: &[f32; PACKET_RAYS],
 ) -> u32 {
     use std::arch::x86_64::*;
-    let mut t_near = _mm256_setzero_ps();
-    // SAFETY: `t_max` holds 8 f32.
-    let mut t_far = unsafe { _mm256_loadu_ps(t_max.as_ptr()) };
-    for axis in 0..3 {
-        let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
-        let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
-        // SAFETY: each row of `inv` is 8 f32.
-        let inv = unsafe { _mm256_loadu_ps(packet.inv[axis].as_ptr()) };
-        let n = _mm256_mul_ps(_mm256_set1_ps(near_plane), inv);
-        let f = _mm256_mul_ps(_mm256_set1_ps(far_plane), inv);
-        t_near = _mm256_max_ps(n, t_near);
-        t_far = _mm256_min_ps(f, t_far);
+    let mut mask = 0u32;
+    for half in 0..PACKET_RAYS / 8 {
+        let at = 8 * half;
+        let mut t_near = _mm256_setzero_ps();
+        // SAFETY: `t_max` holds PACKET_RAYS f32, a multiple of 8.
+        let mut t_far = unsafe { _mm256_loadu_ps(t_max[at..].as_ptr()) };
+        for axis in 0..3 {
+            let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
+            let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
+            // SAFETY: each row of `inv` is PACKET_RAYS f32.
+            let inv = unsafe { _mm256_loadu_ps(packet.inv[axis][at..].as_ptr()) };
+            let n = _mm256_mul_ps(_mm256_set1_ps(near_plane), inv);
+            let f = _mm256_mul_ps(_mm256_set1_ps(far_plane), inv);
+            t_near = _mm256_max_ps(n, t_near);
+            t_far = _mm256_min_ps(f, t_far);
+        }
+        let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
+        mask |= (_mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32) << at;
     }
-    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
-    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32
+    mask
 }
 
 /// [`packet_node_test`] in AVX intrinsics, the same operations in the same order.
@@ -1115,7 +1122,7 @@ mod tests {
                 base[round % 3] = 0.0;
             }
             let spread = [1e-4, 1e-2, 0.3][round % 3];
-            let rays: Vec<RayBoxTest> = (0..1 + round % 8)
+            let rays: Vec<RayBoxTest> = (0..1 + round % PACKET_RAYS)
                 .map(|_| {
                     let jitter = Vec3::new(value(), value(), value()) * spread;
                     // Keep the signs (zeros stay zeros), as a packet needs.
@@ -1200,7 +1207,7 @@ mod tests {
             let origin = point(30.0);
             let base = point(1.0);
             let spread = [1e-3, 3e-2, 0.3][round % 3];
-            let rays: Vec<RayBoxTest> = (0..1 + round % 8)
+            let rays: Vec<RayBoxTest> = (0..1 + round % PACKET_RAYS)
                 .map(|_| RayBoxTest::new(origin, base + point(spread)))
                 .collect();
             let Some(packet) = PacketBoxTest::new(&rays) else {
