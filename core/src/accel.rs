@@ -27,12 +27,12 @@ pub fn take_ray_count() -> u64 {
 }
 
 #[inline]
-fn count_ray() {
-    RAYS_TRACED.with(|c| c.set(c.get() + 1));
+fn count_rays(n: u64) {
+    RAYS_TRACED.with(|c| c.set(c.get() + n));
 }
 
 /// Most rays [`Geometry::intersect_packet`] traces as one packet.
-pub const PACKET_SIZE: usize = crate::wide_bvh::PACKET_RAYS;
+pub use crate::wide_bvh::PACKET_SIZE;
 
 /// A ray `origin + t · direction`, t in (0, t_max). `direction` need not be unit length.
 #[derive(Clone, Copy, Debug)]
@@ -146,6 +146,26 @@ impl Boundable for Primitive {
             }
             Primitive::Sphere { sphere, .. } => sphere_box(sphere.center, sphere.radius),
         }
+    }
+}
+
+impl Primitive {
+    /// Index of the shape the primitive belongs to.
+    fn shape(&self) -> u32 {
+        match self {
+            Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => *shape,
+        }
+    }
+
+    /// Where `ray` (with its `shear`) meets the primitive before `t_max`: the distance and the
+    /// barycentrics (zero for a sphere).
+    #[inline(always)]
+    fn hit(&self, ray: &Ray, shear: &RayShear, t_max: f32) -> Option<(f32, [f32; 3])> {
+        let (t, b) = match self {
+            Primitive::Triangle { p, .. } => intersect_triangle(ray, shear, t_max, p)?,
+            Primitive::Sphere { sphere, .. } => (intersect_sphere(ray, t_max, sphere)?, [0.0; 3]),
+        };
+        (t < t_max).then_some((t, b))
     }
 }
 
@@ -568,7 +588,7 @@ impl Geometry {
     /// shape it is (e.g. whether a BSDF ray reached the light it was drawn for) before paying
     /// for the position, error bounds and normals with [`Geometry::surface`].
     pub fn first_hit(&self, ray: &Ray) -> Option<FirstHit> {
-        count_ray();
+        count_rays(1);
         if self.primitives.is_empty() {
             return None;
         }
@@ -577,23 +597,13 @@ impl Geometry {
         // Of the closest hit so far (the traversal's last accepted primitive).
         let (mut t_hit, mut barycentrics) = (ray.t_max, [0.0; 3]);
         let slot = self.bvh.closest_hit(&boxes, ray.t_max, |slot, t_max| {
-            let (t, b) = match &self.primitives[slot] {
-                Primitive::Triangle { p, .. } => intersect_triangle(ray, &shear, t_max, p)?,
-                Primitive::Sphere { sphere, .. } => {
-                    (intersect_sphere(ray, t_max, sphere)?, [0.0; 3])
-                }
-            };
-            (t < t_max).then(|| {
-                (t_hit, barycentrics) = (t, b);
-                t
-            })
+            let (t, b) = self.primitives[slot].hit(ray, &shear, t_max)?;
+            (t_hit, barycentrics) = (t, b);
+            Some(t)
         })?;
-        let shape = match &self.primitives[slot] {
-            Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => *shape,
-        };
         Some(FirstHit {
             t: t_hit,
-            shape,
+            shape: self.primitives[slot].shape(),
             slot: slot as u32,
             barycentrics,
         })
@@ -602,10 +612,11 @@ impl Geometry {
     /// The closest intersections along rays that share an origin, such as a pinhole camera's
     /// rays through one pixel: `hits[i]` is what [`Geometry::intersect`] returns for `rays[i]`,
     /// found by traversing the BVH once for up to [`PACKET_SIZE`] rays
-    /// ([`WideBvh::closest_hit_packet`]). Each ray tests the primitives its own traversal would
-    /// test, so it finds the same closest hit; only where two primitives are hit at the same
-    /// distance may it return the other one. Rays that do not share an origin and direction
-    /// signs are traced one by one.
+    /// ([`WideBvh::closest_hit_packet`]). Each ray tests every primitive its own traversal
+    /// would test before reaching its closest hit, so it finds that hit; only where two
+    /// primitives are hit at exactly the same distance may the other order of the nodes give
+    /// the other one. Rays that do not share an origin and direction signs are traced one by
+    /// one.
     pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<Intersection>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         for (rays, hits) in rays.chunks(PACKET_SIZE).zip(hits.chunks_mut(PACKET_SIZE)) {
@@ -634,9 +645,7 @@ impl Geometry {
                 return;
             }
         };
-        for _ in rays {
-            count_ray();
-        }
+        count_rays(n as u64);
         let shears: [RayShear; PACKET_SIZE] =
             std::array::from_fn(|i| RayShear::new(rays[i.min(n - 1)].direction));
         let mut t_max: [f32; PACKET_SIZE] = std::array::from_fn(|i| rays[i.min(n - 1)].t_max);
@@ -647,30 +656,17 @@ impl Geometry {
             &mut t_max[..n],
             &mut closest[..n],
             |r, slot, t_max| {
-                let ray = &rays[r];
-                let (t, b) = match &self.primitives[slot] {
-                    Primitive::Triangle { p, .. } => intersect_triangle(ray, &shears[r], t_max, p)?,
-                    Primitive::Sphere { sphere, .. } => {
-                        (intersect_sphere(ray, t_max, sphere)?, [0.0; 3])
-                    }
-                };
-                (t < t_max).then(|| {
-                    barycentrics[r] = b;
-                    t
-                })
+                let (t, b) = self.primitives[slot].hit(&rays[r], &shears[r], t_max)?;
+                barycentrics[r] = b;
+                Some(t)
             },
         );
         for (r, hit) in hits.iter_mut().enumerate() {
-            *hit = closest[r].map(|slot| {
-                let shape = match &self.primitives[slot] {
-                    Primitive::Triangle { shape, .. } | Primitive::Sphere { shape, .. } => *shape,
-                };
-                FirstHit {
-                    t: t_max[r],
-                    shape,
-                    slot: slot as u32,
-                    barycentrics: barycentrics[r],
-                }
+            *hit = closest[r].map(|slot| FirstHit {
+                t: t_max[r],
+                shape: self.primitives[slot].shape(),
+                slot: slot as u32,
+                barycentrics: barycentrics[r],
             });
         }
     }
@@ -728,20 +724,15 @@ impl Geometry {
 
     /// Whether anything blocks the ray before `t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        count_ray();
+        count_rays(1);
         if self.primitives.is_empty() {
             return false;
         }
         let shear = RayShear::new(ray.direction);
         let boxes = RayBoxTest::new(ray.origin, ray.direction);
-        self.bvh
-            .any_hit(&boxes, ray.t_max, |slot| match &self.primitives[slot] {
-                Primitive::Triangle { p, .. } => intersect_triangle(ray, &shear, ray.t_max, p)
-                    .is_some_and(|(t, _)| t < ray.t_max),
-                Primitive::Sphere { sphere, .. } => {
-                    intersect_sphere(ray, ray.t_max, sphere).is_some()
-                }
-            })
+        self.bvh.any_hit(&boxes, ray.t_max, |slot| {
+            self.primitives[slot].hit(ray, &shear, ray.t_max).is_some()
+        })
     }
 }
 

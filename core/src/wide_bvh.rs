@@ -441,7 +441,7 @@ impl RayBoxTest {
     }
 }
 
-/// Up to [`PACKET_RAYS`] rays that share an origin and the signs of their directions (a
+/// Up to [`PACKET_SIZE`] rays that share an origin and the signs of their directions (a
 /// pinhole camera's rays through one pixel), tested against a node's children together: per
 /// axis, the interval of their reciprocal directions (Boulos et al., "Packet-based Whitted and
 /// distribution ray tracing", 2007). A child passes if one of the rays might enter it: each
@@ -458,24 +458,25 @@ pub struct PacketBoxTest {
     inv_low: [f32; 3],
     inv_high: [f32; 3],
     /// Per axis, each ray's reciprocal direction (lanes past the rays repeat the last one).
-    inv: [[f32; PACKET_RAYS]; 3],
+    inv: [[f32; PACKET_SIZE]; 3],
     /// As [`RayBoxTest::near`], the same for every ray of the packet.
     near: [usize; 3],
     rays: usize,
 }
 
 /// Most rays in a [`PacketBoxTest`]: two 8-lane registers hold one value of each. 16 rather
-/// than 8: the node test is paid once per packet, and a pixel's samples hardly widen the
-/// packet (the dragon, 15 rounds: × 1.053 [1.020, 1.086], docs/performance.md).
-pub const PACKET_RAYS: usize = 16;
+/// than 8: the packet's node test is paid once for twice as many rays of one pixel (the
+/// dragon, 8 against 16: × 1.058 and × 1.053 in two runs, 1.011 n.s. in a third;
+/// docs/performance.md).
+pub const PACKET_SIZE: usize = 16;
 
 impl PacketBoxTest {
-    /// The packet of `rays`; `None` if there are none or more than [`PACKET_RAYS`], or if they
+    /// The packet of `rays`; `None` if there are none or more than [`PACKET_SIZE`], or if they
     /// do not all share their origin and the sign of each direction component (trace those
     /// one by one).
     pub fn new(rays: &[RayBoxTest]) -> Option<Self> {
         let first = rays.first()?;
-        if rays.len() > PACKET_RAYS {
+        if rays.len() > PACKET_SIZE {
             return None;
         }
         let last = rays[rays.len() - 1];
@@ -574,15 +575,15 @@ fn rays_entering(
     node: &WideNode,
     lane: usize,
     packet: &PacketBoxTest,
-    t_max: &[f32; PACKET_RAYS],
+    t_max: &[f32; PACKET_SIZE],
 ) -> u32 {
-    let mut t_near = [0.0f32; PACKET_RAYS];
+    let mut t_near = [0.0f32; PACKET_SIZE];
     let mut t_far = *t_max;
     for axis in 0..3 {
         let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
         let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
         let inv = &packet.inv[axis];
-        for r in 0..PACKET_RAYS {
+        for r in 0..PACKET_SIZE {
             let n = near_plane * inv[r];
             let f = far_plane * inv[r];
             t_near[r] = if n > t_near[r] { n } else { t_near[r] };
@@ -591,7 +592,7 @@ fn rays_entering(
     }
     let scale = far_scale();
     let mut mask = 0u32;
-    for r in 0..PACKET_RAYS {
+    for r in 0..PACKET_SIZE {
         mask |= ((t_near[r] <= t_far[r] * scale) as u32) << r;
     }
     mask
@@ -649,19 +650,19 @@ fn rays_entering_avx2(
     node: &WideNode,
     lane: usize,
     packet: &PacketBoxTest,
-    t_max: &[f32; PACKET_RAYS],
+    t_max: &[f32; PACKET_SIZE],
 ) -> u32 {
     use std::arch::x86_64::*;
     let mut mask = 0u32;
-    for half in 0..PACKET_RAYS / 8 {
+    for half in 0..PACKET_SIZE / 8 {
         let at = 8 * half;
         let mut t_near = _mm256_setzero_ps();
-        // SAFETY: `t_max` holds PACKET_RAYS f32, a multiple of 8.
+        // SAFETY: `t_max` holds PACKET_SIZE f32, a multiple of 8.
         let mut t_far = unsafe { _mm256_loadu_ps(t_max[at..].as_ptr()) };
         for axis in 0..3 {
             let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
             let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
-            // SAFETY: each row of `inv` is PACKET_RAYS f32.
+            // SAFETY: each row of `inv` is PACKET_SIZE f32.
             let inv = unsafe { _mm256_loadu_ps(packet.inv[axis][at..].as_ptr()) };
             let n = _mm256_mul_ps(_mm256_set1_ps(near_plane), inv);
             let f = _mm256_mul_ps(_mm256_set1_ps(far_plane), inv);
@@ -827,12 +828,12 @@ fn closest_hit_packet_kernel(
     closest: &mut [Option<usize>],
     mut hit: impl FnMut(usize, usize, f32) -> Option<f32>,
     node_test: impl Fn(&WideNode, &PacketBoxTest, f32) -> (u32, [f32; 8]),
-    rays_entering: impl Fn(&WideNode, usize, &PacketBoxTest, &[f32; PACKET_RAYS]) -> u32,
+    rays_entering: impl Fn(&WideNode, usize, &PacketBoxTest, &[f32; PACKET_SIZE]) -> u32,
 ) {
     // Lanes past the rays never enter anything.
-    let mut ray_t_max = [-1.0f32; PACKET_RAYS];
+    let mut ray_t_max = [-1.0f32; PACKET_SIZE];
     ray_t_max[..packet.rays].copy_from_slice(&t_max[..packet.rays]);
-    let largest = |t_max: &[f32; PACKET_RAYS]| t_max.iter().copied().fold(0.0f32, f32::max);
+    let largest = |t_max: &[f32; PACKET_SIZE]| t_max.iter().copied().fold(0.0f32, f32::max);
     let mut stack = Stack::new();
     let mut node = 0u32;
     let scale = far_scale();
@@ -1122,7 +1123,7 @@ mod tests {
                 base[round % 3] = 0.0;
             }
             let spread = [1e-4, 1e-2, 0.3][round % 3];
-            let rays: Vec<RayBoxTest> = (0..1 + round % PACKET_RAYS)
+            let rays: Vec<RayBoxTest> = (0..1 + round % PACKET_SIZE)
                 .map(|_| {
                     let jitter = Vec3::new(value(), value(), value()) * spread;
                     // Keep the signs (zeros stay zeros), as a packet needs.
@@ -1145,7 +1146,7 @@ mod tests {
                 .collect();
             let packet_t_max = t_maxes.iter().copied().fold(0.0, f32::max);
             let (mask, near) = packet_node_test(&node, &packet, packet_t_max);
-            let mut ray_t_max = [-1.0f32; PACKET_RAYS];
+            let mut ray_t_max = [-1.0f32; PACKET_SIZE];
             ray_t_max[..rays.len()].copy_from_slice(&t_maxes);
             for lane in 0..8 {
                 let entering = rays_entering(&node, lane, &packet, &ray_t_max);
@@ -1207,7 +1208,7 @@ mod tests {
             let origin = point(30.0);
             let base = point(1.0);
             let spread = [1e-3, 3e-2, 0.3][round % 3];
-            let rays: Vec<RayBoxTest> = (0..1 + round % PACKET_RAYS)
+            let rays: Vec<RayBoxTest> = (0..1 + round % PACKET_SIZE)
                 .map(|_| RayBoxTest::new(origin, base + point(spread)))
                 .collect();
             let Some(packet) = PacketBoxTest::new(&rays) else {
