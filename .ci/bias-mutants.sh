@@ -6,8 +6,8 @@
 # test failed) or SURVIVED. Exit status 1 if any mutant survived.
 #
 #   .ci/bias-mutants.sh                                # every patch, every test (long)
-#   .ci/bias-mutants.sh -p lumis --test integrators    # every patch, one test binary
-#   PATCHES=".ci/bias-mutants/light-pdf-times-1.02.patch" .ci/bias-mutants.sh --test render
+#   .ci/bias-mutants.sh -p lumis --test integration -- integrators::    # every patch, one module
+#   PATCHES=".ci/bias-mutants/light-pdf-times-1.02.patch" .ci/bias-mutants.sh --test integration -- render::
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)

@@ -21,8 +21,8 @@ groups=(
     "--test glossy_masking"
     "--test emitters"
     "--test envmap_bilinear"
-    "--test robustness -- plugin_library"
-    "--test integrators -- same_mean_ every_integrator_gives_the_closed_form_at_one_point"
+    "--test integration -- robustness::plugin_library"
+    "--test integration -- integrators::same_mean_ integrators::every_integrator_gives_the_closed_form_at_one_point"
 )
 failed=()
 for group in "${groups[@]}"; do

@@ -3,7 +3,7 @@
 //! cell (in any order) and collected reports what the local study reports, names its missing
 //! and failed cells, and takes the cell index from the environment of an array job.
 
-mod common;
+use crate::common;
 
 use common::lumis;
 use std::collections::HashMap;

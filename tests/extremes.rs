@@ -2,7 +2,7 @@
 //! integrator with every AOV: no NaN or Inf anywhere, α inside its clamp, and where an analytic
 //! answer exists, the mean within 3σ of it (σ from the spread of independent pixel estimates).
 
-mod common;
+use crate::common;
 use common::scene_file;
 use lumis::integrators::{alpha, aovs, balance, bsdf, light};
 use std::path::Path;

@@ -3,7 +3,7 @@
 //! options; glTF cameras, lights and materials; a Mitsuba 3 XML scene converts and renders, and
 //! what cannot be converted is named with its line.
 
-mod common;
+use crate::common;
 
 use common::{lumis, render, scene_file};
 use lumis::scene::shapes::{Mesh, cube};

@@ -4,7 +4,7 @@
 //! corpora for the importers (`fuzz/corpus/{obj,ply,mitsuba_xml}`) replayed through the fuzz
 //! targets' entry points, for when cargo-fuzz is not at hand.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -2,7 +2,7 @@
 //! finds the supplemental's limits in scenes, beats `balance` on the Veach layout, and `alpha`
 //! with a fixed α reproduces `balance`, `bsdf` and `light` bit for bit.
 
-mod common;
+use crate::common;
 use common::{integrators, lumis, scene_file};
 use lumis::chi2::{FAMILY_FALSE_ALARM, sidak, test_seed, z_limit};
 use lumis::integrators::{alpha, aovs, balance, bsdf, light, mis, variance_aware};

@@ -1,6 +1,6 @@
 //! Rendering end to end: determinism across thread counts, analytic answers, outputs.
 
-mod common;
+use crate::common;
 use common::{SMALL_SCENE, example_library, load, lumis, scene_file};
 use std::path::Path;
 

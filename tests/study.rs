@@ -4,7 +4,7 @@
 //! source tree and reused; interruption keeps the finished scenes; bad arguments get clear
 //! errors.
 
-mod common;
+use crate::common;
 
 use common::lumis;
 use std::collections::{BTreeSet, HashMap};
