@@ -51,6 +51,40 @@ pub fn test_sampler(stream: u64) -> Sampler {
     Sampler::new(test_seed(), stream, 0x7e57)
 }
 
+/// `run` applied to every case, the cases spread over the machine's cores; the results come
+/// back in the cases' order. For a test function's independent checks (each chi-square case
+/// draws from its own seeded stream, so where it runs changes nothing): one long sequential
+/// loop would keep the suite's other core idle.
+pub fn run_side_by_side<C: Sync, T: Send>(cases: &[C], run: impl Fn(&C) -> T + Sync) -> Vec<T> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut results: Vec<(usize, T)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers.min(cases.len()))
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut done = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(case) = cases.get(i) else {
+                            return done;
+                        };
+                        done.push((i, run(case)));
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| {
+                h.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
+            .collect()
+    });
+    results.sort_by_key(|&(i, _)| i);
+    results.into_iter().map(|(_, result)| result).collect()
+}
+
 /// The per-test significance that keeps the family-wise level at `alpha` over `tests` tests.
 /// Exact for independent tests; under any dependence the family-wise level stays below
 /// `tests` times it, which is at most α (1 + α·tests/2) (Bonferroni).
@@ -499,6 +533,24 @@ impl Chi2Outcome {
 mod tests {
     use super::*;
     use crate::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+
+    #[test]
+    fn cases_run_side_by_side_come_back_in_order() {
+        // Uneven work, so that the workers finish out of order.
+        let cases: Vec<u64> = (0..23).map(|i| (i * 7919) % 23).collect();
+        let results = run_side_by_side(&cases, |&n| {
+            (0..n * 20_000).for_each(|k| {
+                std::hint::black_box(k);
+            });
+            n * n
+        });
+        let expected: Vec<u64> = cases.iter().map(|n| n * n).collect();
+        assert_eq!(results, expected);
+        let panicked = std::panic::catch_unwind(|| {
+            run_side_by_side(&[1, 2, 3], |&n| assert!(n != 2, "case {n} fails"))
+        });
+        assert!(panicked.is_err(), "a failing case fails the caller");
+    }
 
     #[test]
     fn a_correct_sampler_passes_and_a_wrong_density_fails() {

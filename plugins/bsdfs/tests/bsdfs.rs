@@ -6,7 +6,9 @@
 
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::Bsdf;
-use lumis_core::chi2::{Chi2Test, FAMILY_FALSE_ALARM, sidak, test_bsdf, test_seed, z_limit};
+use lumis_core::chi2::{
+    Chi2Test, FAMILY_FALSE_ALARM, run_side_by_side, sidak, test_bsdf, test_seed, z_limit,
+};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, BsdfPlugin};
 use lumis_core::sampler::Sampler;
@@ -292,12 +294,14 @@ fn chi_square_sampling_matches_pdf() {
         }
     }
     let alpha = sidak(FAMILY_FALSE_ALARM, runs.len());
-    for (name, b, setup) in &runs {
-        let outcome = if setup.half_vector {
+    let outcomes = run_side_by_side(&runs, |(_, b, setup)| {
+        if setup.half_vector {
             half_vector_chi2(b.as_ref(), setup.wo, &setup.test)
         } else {
             test_bsdf(b.as_ref(), setup.wo, &setup.test)
-        };
+        }
+    });
+    for ((name, _, _), outcome) in runs.iter().zip(outcomes) {
         outcome.assert_passes(alpha, name);
     }
 }
