@@ -588,6 +588,27 @@ impl Geometry {
     /// shape it is (e.g. whether a BSDF ray reached the light it was drawn for) before paying
     /// for the position, error bounds and normals with [`Geometry::surface`].
     pub fn first_hit(&self, ray: &Ray) -> Option<FirstHit> {
+        self.closest_hit_among(ray, |_| true)
+    }
+
+    /// The closest hit on shape `shape` along the ray, every other shape ignored, as if it were
+    /// alone in the scene: where light sampling could have drawn the direction of a BSDF ray
+    /// that something else blocked. The same traversal and primitive tests as
+    /// [`Geometry::first_hit`], so a ray that reaches the shape finds the same hit either way.
+    pub fn first_hit_on_shape(&self, ray: &Ray, shape: u32) -> Option<FirstHit> {
+        if !self.may_meet(ray, shape) {
+            return None;
+        }
+        self.closest_hit_among(ray, |primitive| primitive.shape() == shape)
+    }
+
+    /// The closest hit along the ray among the primitives `counts` accepts.
+    #[inline(always)]
+    fn closest_hit_among(
+        &self,
+        ray: &Ray,
+        counts: impl Fn(&Primitive) -> bool,
+    ) -> Option<FirstHit> {
         count_rays(1);
         if self.primitives.is_empty() {
             return None;
@@ -597,7 +618,11 @@ impl Geometry {
         // Of the closest hit so far (the traversal's last accepted primitive).
         let (mut t_hit, mut barycentrics) = (ray.t_max, [0.0; 3]);
         let slot = self.bvh.closest_hit(&boxes, ray.t_max, |slot, t_max| {
-            let (t, b) = self.primitives[slot].hit(ray, &shear, t_max)?;
+            let primitive = &self.primitives[slot];
+            if !counts(primitive) {
+                return None;
+            }
+            let (t, b) = primitive.hit(ray, &shear, t_max)?;
             (t_hit, barycentrics) = (t, b);
             Some(t)
         })?;
@@ -845,6 +870,35 @@ mod tests {
             prop_assert_eq!(geometry.occluded(ray), expected.is_some());
             if let Some(hit) = got {
                 prop_assert!(hit.position.is_finite() && hit.geometric_normal.is_normalized());
+            }
+            Ok(())
+        });
+    }
+
+    /// The closest hit on one shape, every other shape ignored, is the brute-force closest
+    /// among that shape's primitives (distance and shape), for every shape of the scene; and
+    /// where the ray's first hit is on that shape, the same hit.
+    #[test]
+    fn hits_on_one_shape_ignore_the_others() {
+        for_random_scenes_and_rays(|geometry, ray| {
+            let first = geometry.first_hit(ray);
+            for shape in 0..geometry.shapes.len() as u32 {
+                let own: Vec<Primitive> = (geometry.primitives.iter())
+                    .filter(|p| p.shape() == shape)
+                    .copied()
+                    .collect();
+                let got = geometry.first_hit_on_shape(ray, shape);
+                let expected = brute_force_closest(&own, ray);
+                prop_assert_eq!(got.map(|h| (h.t, h.shape)), expected, "ray {:?}", ray);
+                if let Some(first) = first.filter(|f| f.shape == shape) {
+                    let on_shape = got.expect("the first hit is on the shape");
+                    let (a, b) = (
+                        geometry.surface(ray, &on_shape),
+                        geometry.surface(ray, &first),
+                    );
+                    prop_assert_eq!((a.t, a.position), (b.t, b.position));
+                    prop_assert_eq!(a.geometric_normal, b.geometric_normal);
+                }
             }
             Ok(())
         });

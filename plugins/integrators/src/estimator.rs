@@ -13,13 +13,12 @@
 //! allocation per sample), so that a method weighs and observes them as plain slices.
 
 use glam::Vec3;
-use lumis_core::accel::{Intersection, Ray};
+use lumis_core::accel::{FirstHit, Intersection, Ray};
 use lumis_core::bsdf::{Bsdf, BsdfSample};
 use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
-use lumis_core::scene::shapes::ShapeGeometry;
 
 /// A surface point seen by the camera, with its shading frame turned toward the viewer
 /// (surfaces are two-sided).
@@ -151,57 +150,14 @@ pub enum Densities {
     Both,
 }
 
-/// Where `ray` meets the surface of light `light` (shape `shape`) first, ignoring every other
-/// surface: the closest triangle (Möller–Trumbore) or sphere hit.
-fn hit_on_light(scene: &Scene, shape: u32, ray: &Ray) -> Option<EmitterHit> {
-    let d = ray.direction;
-    match &scene.geometry.shapes()[shape as usize] {
-        ShapeGeometry::Sphere(s) => {
-            let oc = ray.origin - s.center;
-            let (a, half_b) = (d.length_squared(), oc.dot(d));
-            let c = oc.length_squared() - s.radius * s.radius;
-            let discriminant = half_b * half_b - a * c;
-            if discriminant < 0.0 {
-                return None;
-            }
-            let root = discriminant.sqrt();
-            let t = [(-half_b - root) / a, (-half_b + root) / a]
-                .into_iter()
-                .find(|&t| t > 0.0 && t < ray.t_max)?;
-            let position = ray.origin + t * d;
-            Some(EmitterHit {
-                position,
-                normal: (position - s.center).normalize_or_zero(),
-                distance: t * d.length(),
-            })
-        }
-        ShapeGeometry::Mesh(mesh) => {
-            let mut best: Option<(f32, Vec3)> = None;
-            for i in 0..mesh.indices.len() {
-                let [p0, p1, p2] = mesh.triangle(i);
-                let (e1, e2) = (p1 - p0, p2 - p0);
-                let pv = d.cross(e2);
-                let det = e1.dot(pv);
-                if det == 0.0 {
-                    continue;
-                }
-                let inv = 1.0 / det;
-                let tv = ray.origin - p0;
-                let u = tv.dot(pv) * inv;
-                let qv = tv.cross(e1);
-                let v = d.dot(qv) * inv;
-                let t = e2.dot(qv) * inv;
-                let closer = best.is_none_or(|(b, _)| t < b);
-                if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < ray.t_max && closer {
-                    best = Some((t, e1.cross(e2).normalize_or_zero()));
-                }
-            }
-            best.map(|(t, normal)| EmitterHit {
-                position: ray.origin + t * d,
-                normal,
-                distance: t * d.length(),
-            })
-        }
+/// The light's surface where `ray` first meets shape `shape` (`first`), as the light's density
+/// and radiance are asked for it.
+fn emitter_hit(scene: &Scene, ray: &Ray, first: &FirstHit) -> EmitterHit {
+    let hit = scene.geometry.surface(ray, first);
+    EmitterHit {
+        position: hit.position,
+        normal: hit.geometric_normal,
+        distance: hit.t,
     }
 }
 
@@ -221,9 +177,13 @@ fn light_density_toward(
     if scene.environment == Some(light) {
         return emitter.pdf_direction(reference, ray.direction, None);
     }
-    let Some(hit) = light_shape.and_then(|shape| hit_on_light(scene, shape, ray)) else {
+    // Through the BVH with every other shape ignored: a mesh light's triangles one by one made
+    // each blocked BSDF sample cost time in proportion to the light's size.
+    let Some(first) = light_shape.and_then(|shape| scene.geometry.first_hit_on_shape(ray, shape))
+    else {
         return 0.0;
     };
+    let hit = emitter_hit(scene, ray, &first);
     if emitter.eval(ray.direction, Some(&hit)) == Rgb::ZERO {
         return 0.0;
     }
@@ -264,13 +224,8 @@ fn reaches_light(scene: &Scene, light: usize, light_shape: Option<u32>, ray: &Ra
     let Some(first) = scene.first_hit(ray).filter(|first| first.shape == shape) else {
         return Reached::Nothing;
     };
-    let hit = scene.geometry.surface(ray, &first);
-    let h = EmitterHit {
-        position: hit.position,
-        normal: hit.geometric_normal,
-        distance: hit.t,
-    };
-    Reached::Surface(h, emitter.eval(ray.direction, Some(&h)))
+    let hit = emitter_hit(scene, ray, &first);
+    Reached::Surface(hit, emitter.eval(ray.direction, Some(&hit)))
 }
 
 /// The record of a BSDF sample `s` that reached its light, from which radiance `le` arrives;
