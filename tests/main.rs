@@ -1,7 +1,8 @@
 //! The root package's integration tests, in one test binary (`cargo test --test integration`;
-//! `-- render::` runs one module's tests). Each test binary links the library and instantiates
-//! its generic code anew, so nine binaries cost CI about 88 s of compiling against one; one
-//! binary also lets the harness run the long tests of different modules side by side.
+//! `-- render::` runs one module's tests). Each test binary compiles its own copy of the generic
+//! code it uses: as nine binaries these files took 88 s of compile time, as one 33 s
+//! (docs/testing.md, "Fewer test binaries"). One binary also lets the harness run the long
+//! tests of different modules side by side.
 //!
 //! Cargo's automatic discovery of `tests/*.rs` is off (`autotests = false`), so a new test file
 //! must be declared here; `every_test_file_is_a_module` fails until it is (for this package
