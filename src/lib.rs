@@ -10,6 +10,7 @@ pub use lumis_emitters as emitters;
 pub use lumis_integrators as integrators;
 
 mod binary;
+pub mod embedding;
 pub mod import;
 pub mod shards;
 pub mod study;

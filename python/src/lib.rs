@@ -9,6 +9,7 @@
 mod convert;
 mod study;
 
+use lumis::embedding::catch_panic;
 use lumis_core::film::Film;
 use lumis_core::image_io::Metadata;
 use lumis_core::params::ParamSpec;
@@ -22,7 +23,6 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError, mpsc};
@@ -61,25 +61,6 @@ create_exception!(
 
 /// How often the calling thread wakes up during a render to let Python handle signals.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);
-
-/// The message of a caught panic.
-fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
-}
-
-/// Runs `f`, turning a panic into an error message (a bug in lumis, never the user's fault).
-fn catch_panic<T>(f: impl FnOnce() -> T) -> Result<T, String> {
-    catch_unwind(AssertUnwindSafe(f)).map_err(|payload| {
-        format!(
-            "internal error: {} (a bug in lumis; please report it with the scene)",
-            panic_message(payload.as_ref())
-        )
-    })
-}
 
 /// Runs an entry point's body so that a panic becomes a `LumisError`.
 fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
@@ -681,17 +662,4 @@ fn _lumis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(plugins, m)?)?;
     m.add_function(wrap_pyfunction!(study::study, m)?)?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn panics_become_messages() {
-        let caught = catch_panic(|| -> u32 { panic!("boom at {}", 3) });
-        let message = caught.expect_err("the panic is caught");
-        assert!(message.contains("internal error: boom at 3"), "{message}");
-        assert_eq!(catch_panic(|| 7), Ok(7));
-    }
 }
