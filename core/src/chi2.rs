@@ -51,38 +51,17 @@ pub fn test_sampler(stream: u64) -> Sampler {
     Sampler::new(test_seed(), stream, 0x7e57)
 }
 
-/// `run` applied to every case, the cases spread over the machine's cores; the results come
-/// back in the cases' order. For a test function's independent checks (each chi-square case
-/// draws from its own seeded stream, so where it runs changes nothing): one long sequential
-/// loop would keep the suite's other core idle.
-pub fn run_side_by_side<C: Sync, T: Send>(cases: &[C], run: impl Fn(&C) -> T + Sync) -> Vec<T> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let mut results: Vec<(usize, T)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers.min(cases.len()))
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut done = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(case) = cases.get(i) else {
-                            return done;
-                        };
-                        done.push((i, run(case)));
-                    }
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-            })
-            .collect()
-    });
-    results.sort_by_key(|&(i, _)| i);
-    results.into_iter().map(|(_, result)| result).collect()
+/// `run` applied to every case, the cases spread over the machine's cores (rayon's ordered
+/// parallel map); the results come back in the cases' order. For a test function's independent
+/// checks (each chi-square case draws from its own seeded stream, so where it runs changes
+/// nothing): one long sequential loop would keep the suite's other core idle. A case's panic
+/// reaches the caller.
+pub fn run_side_by_side<C: Sync, T: Send>(
+    cases: &[C],
+    run: impl Fn(&C) -> T + Sync + Send,
+) -> Vec<T> {
+    use rayon::prelude::*;
+    cases.par_iter().map(run).collect()
 }
 
 /// The per-test significance that keeps the family-wise level at `alpha` over `tests` tests.

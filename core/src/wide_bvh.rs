@@ -1024,7 +1024,6 @@ mod tests {
         let mut sampler = crate::sampler::Sampler::new(11, 0, 0);
         let (bvh, leaf_boxes) = random_box_tree(&mut sampler);
         let mut point = |scale: f32| random_point(&mut sampler, scale);
-        let entry = box_entry;
         let mut hits = 0;
         for _ in 0..2000 {
             let origin = point(30.0);
@@ -1033,13 +1032,13 @@ mod tests {
             let test = RayBoxTest::new(origin, direction);
             let mut expected: Option<(f32, usize)> = None;
             for (i, b) in leaf_boxes.iter().enumerate() {
-                if let Some(t) = entry(&test, b, expected.map_or(t_max, |e| e.0)) {
+                if let Some(t) = box_entry(&test, b, expected.map_or(t_max, |e| e.0)) {
                     expected = Some((t, i));
                 }
             }
-            let hit = |i: usize, t: f32| entry(&test, &leaf_boxes[i], t);
-            let blocks = |i: usize| entry(&test, &leaf_boxes[i], t_max).is_some();
-            let t_of = |i: Option<usize>| i.map(|i| entry(&test, &leaf_boxes[i], t_max));
+            let hit = |i: usize, t: f32| box_entry(&test, &leaf_boxes[i], t);
+            let blocks = |i: usize| box_entry(&test, &leaf_boxes[i], t_max).is_some();
+            let t_of = |i: Option<usize>| i.map(|i| box_entry(&test, &leaf_boxes[i], t_max));
             let expected_t = expected.map(|e| Some(e.0));
             assert_eq!(
                 t_of(closest_hit_kernel(&bvh.nodes, &test, t_max, hit, node_test)),
@@ -1202,7 +1201,6 @@ mod tests {
         let mut sampler = crate::sampler::Sampler::new(23, 0, 0);
         let (bvh, leaf_boxes) = random_box_tree(&mut sampler);
         let mut point = |scale: f32| random_point(&mut sampler, scale);
-        let entry = box_entry;
         let (mut packets, mut hits) = (0, 0);
         for round in 0..600 {
             let origin = point(30.0);
@@ -1228,13 +1226,13 @@ mod tests {
                 .iter()
                 .zip(&t_max0)
                 .map(|(ray, &t_max)| {
-                    let hit = |i: usize, t: f32| entry(ray, &leaf_boxes[i], t);
+                    let hit = |i: usize, t: f32| box_entry(ray, &leaf_boxes[i], t);
                     bvh.closest_hit(ray, t_max, hit)
                         .map(|i| hit(i, t_max).unwrap())
                 })
                 .collect();
             hits += alone.iter().flatten().count();
-            let hit = |r: usize, i: usize, t: f32| entry(&rays[r], &leaf_boxes[i], t);
+            let hit = |r: usize, i: usize, t: f32| box_entry(&rays[r], &leaf_boxes[i], t);
             let mut closest = vec![None; rays.len()];
             let mut t_max = t_max0.clone();
             closest_hit_packet_kernel(
