@@ -365,7 +365,8 @@ pub const MAX_EXR_PIXELS: usize = 1 << 27;
 
 /// Decodes the first RGB(A) layer of EXR data held in memory; never panics on bad data.
 pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, DecodeError> {
-    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)?;
+    let mut headers_read = std::io::Cursor::new(bytes);
+    let meta = exr::meta::MetaData::read_from_buffered(&mut headers_read, false)?;
     let has_rgb = |h: &exr::meta::header::Header| {
         ["R", "G", "B"].iter().all(|name| {
             h.channels
@@ -403,6 +404,9 @@ pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, DecodeError> {
             )));
         }
     }
+    // The header reader has consumed exactly the headers (the last byte it peeks at is their
+    // terminator), so the offset tables start here.
+    check_chunks_fit(bytes, &meta, headers_read.position())?;
     let image = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -420,6 +424,62 @@ pub fn decode_exr_rgb(bytes: &[u8]) -> Result<RgbImage, DecodeError> {
         .all_attributes()
         .from_buffered(std::io::Cursor::new(bytes))?;
     Ok(image.layer_data.channel_data.pixels)
+}
+
+/// Checks that every chunk of a flat part lies inside `bytes` with the byte count it declares,
+/// the offset tables starting at `tables_start`. The decoder sizes a chunk's buffer from its
+/// declared count, up to the largest block the header allows, and zeroes it before reading: a
+/// 584-byte file of the fuzz corpus declared a 3 GB chunk and made it fill 3 GB of memory, in
+/// 9 s. The layout is the OpenEXR file layout's: a part number in multi-part files, the scan
+/// line's y or the tile's four coordinates, then the data's byte count. Deep parts are not read
+/// (no RGB layer is taken from them), so only their offset tables are passed over.
+fn check_chunks_fit(
+    bytes: &[u8],
+    meta: &exr::meta::MetaData,
+    tables_start: u64,
+) -> Result<(), DecodeError> {
+    let invalid = |why: String| DecodeError::Exr(exr::error::Error::Invalid(why.into()));
+    let end = bytes.len() as u64;
+    let read_le = |at: u64, width: u64| -> Option<u64> {
+        let start = usize::try_from(at).ok()?;
+        let field = bytes.get(start..start.checked_add(width as usize)?)?;
+        Some(field.iter().rev().fold(0, |v, &b| v << 8 | u64::from(b)))
+    };
+    let part_number = if meta.requirements.has_multiple_layers {
+        4
+    } else {
+        0
+    };
+    let mut table = tables_start;
+    for (part, header) in meta.headers.iter().enumerate() {
+        let coordinates = match header.blocks {
+            exr::meta::BlockDescription::ScanLines => 4,
+            exr::meta::BlockDescription::Tiles(_) => 16,
+        };
+        let count_at = part_number + coordinates;
+        for chunk in 0..header.chunk_count {
+            let offset = read_le(table, 8).ok_or_else(|| {
+                invalid(format!(
+                    "the offset table of part {part} runs past the end of the data ({end} bytes)"
+                ))
+            })?;
+            table += 8;
+            if header.deep {
+                continue;
+            }
+            // The count is a signed 32-bit integer, read here as unsigned: a negative one does not
+            // fit either.
+            let chunk_end = read_le(offset.saturating_add(count_at), 4)
+                .map(|count| offset + count_at + 4 + count);
+            if chunk_end.is_none_or(|chunk_end| chunk_end > end) {
+                return Err(invalid(format!(
+                    "chunk {chunk} of part {part}, at byte {offset}, declares more bytes than \
+                     the data holds ({end} bytes)"
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Every channel of the first layer of an EXR file, by name, as f32 (for tests and tools).
@@ -452,4 +512,98 @@ pub fn read_exr_metadata(path: &Path) -> Result<Metadata, String> {
         .filter_map(|line| line.split_once('='))
         .map(|(k, v)| (k.to_string(), v.to_string()))
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exr::prelude::{Blocks, Compression, ImageAttributes, LineOrder, SpecificChannels};
+
+    /// A 37 × 21 RGB pattern (x, y, ½) encoded in memory with `blocks` and `compression`, as
+    /// one part or as two.
+    fn encoded(blocks: Blocks, compression: Compression, two_parts: bool) -> Vec<u8> {
+        let size = Vec2(37, 21);
+        let encoding = Encoding {
+            compression,
+            blocks,
+            line_order: LineOrder::Increasing,
+        };
+        let layer = |name: &str| {
+            Layer::new(
+                size,
+                LayerAttributes::named(name),
+                encoding,
+                SpecificChannels::rgb(|p: Vec2<usize>| (p.x() as f32, p.y() as f32, 0.5_f32)),
+            )
+        };
+        let image = Image::empty(ImageAttributes::new(IntegerBounds::from_dimensions(size)))
+            .with_layer(layer("first"));
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        if two_parts {
+            let image = image.with_layer(layer("second"));
+            image.write().to_buffered(&mut bytes).unwrap();
+        } else {
+            image.write().to_buffered(&mut bytes).unwrap();
+        }
+        bytes.into_inner()
+    }
+
+    /// Scan lines and tiles, one part and two, each compressed or not.
+    fn every_layout() -> Vec<(String, Vec<u8>)> {
+        let mut files = Vec::new();
+        for (name, blocks) in [
+            ("scan lines", Blocks::ScanLines),
+            ("tiles", Blocks::Tiles(Vec2(8, 8))),
+        ] {
+            for compression in [Compression::Uncompressed, Compression::ZIP16] {
+                for two_parts in [false, true] {
+                    let label = format!("{name}, {compression:?}, two parts: {two_parts}");
+                    files.push((label, encoded(blocks, compression, two_parts)));
+                }
+            }
+        }
+        files
+    }
+
+    #[test]
+    fn chunks_of_every_layout_are_read() {
+        for (label, bytes) in every_layout() {
+            let image = decode_exr_rgb(&bytes).unwrap_or_else(|e| panic!("{label}: {e:?}"));
+            assert_eq!((image.width, image.height), (37, 21), "{label}");
+            assert_eq!(image.pixels[3 * 37 + 5], Rgb::new(5.0, 3.0, 0.5), "{label}");
+        }
+    }
+
+    /// One byte short, the last chunk no longer holds the bytes it declares. The check must say
+    /// so itself, before the decoder reads: it fails for a layout whose count it looks for in
+    /// the wrong place (a coordinate or a part number read as the count fits).
+    #[test]
+    fn a_chunk_past_the_end_is_refused_before_decoding() {
+        for (label, bytes) in every_layout() {
+            let short = &bytes[..bytes.len() - 1];
+            let e = match decode_exr_rgb(short) {
+                Err(DecodeError::Exr(e)) => e.to_string(),
+                other => panic!("{label}: {other:?}"),
+            };
+            assert!(
+                e.contains("declares more bytes than the data holds"),
+                "{label}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn an_offset_table_past_the_end_is_refused() {
+        let bytes = encoded(Blocks::Tiles(Vec2(8, 8)), Compression::Uncompressed, false);
+        let mut headers_read = std::io::Cursor::new(bytes.as_slice());
+        let meta = exr::meta::MetaData::read_from_buffered(&mut headers_read, false).unwrap();
+        let tables_start = headers_read.position();
+        // The data ends inside the first offset.
+        let short = &bytes[..tables_start as usize + 5];
+        let e = check_chunks_fit(short, &meta, tables_start).unwrap_err();
+        assert!(
+            matches!(&e, DecodeError::Exr(e) if e.to_string().contains("offset table of part 0 runs past")),
+            "{e:?}"
+        );
+    }
 }

@@ -55,6 +55,14 @@ fn inputs_that_once_crashed_are_refused() {
     assert!(!lumis::fuzzing::exr(&read(
         "exr/regression-huge-data-window.exr"
     )));
+    // A 584-byte file declared a 3 GB chunk, which the decoder allocated and zeroed (9 s).
+    let e = lumis::image_io::decode_exr_rgb(&read("exr/regression-chunk-larger-than-file.exr"))
+        .err()
+        .expect("refused");
+    assert!(
+        format!("{e:?}").contains("declares more bytes than the data holds"),
+        "{e:?}"
+    );
     // The seeds they were derived from are accepted.
     assert!(lumis::fuzzing::gltf(&read("gltf/triangle.gltf")));
     assert!(lumis::fuzzing::exr(&read("exr/tiny_f32.exr")));
