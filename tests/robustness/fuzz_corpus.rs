@@ -57,8 +57,7 @@ fn inputs_that_once_crashed_are_refused() {
     )));
     // A 584-byte file declared a 3 GB chunk, which the decoder allocated and zeroed (9 s).
     let e = lumis::image_io::decode_exr_rgb(&read("exr/regression-chunk-larger-than-file.exr"))
-        .err()
-        .expect("refused");
+        .expect_err("refused");
     assert!(
         format!("{e:?}").contains("declares more bytes than the data holds"),
         "{e:?}"
