@@ -62,7 +62,70 @@ fn inputs_that_once_crashed_are_refused() {
         format!("{e:?}").contains("declares more bytes than the data holds"),
         "{e:?}"
     );
+    // A 457-byte file declaring 33 554 435 pixels, whose ZIP data is corrupt: lumis's image
+    // buffer was written in full (400 MB) before the decoder found out.
+    assert!(!lumis::fuzzing::exr(&read(
+        "exr/regression-large-image-corrupt-data.exr"
+    )));
     // The seeds they were derived from are accepted.
     assert!(lumis::fuzzing::gltf(&read("gltf/triangle.gltf")));
     assert!(lumis::fuzzing::exr(&read("exr/tiny_f32.exr")));
+}
+
+/// EXR files of under a kilobyte that declare a 3 GB chunk, or a 33-million-pixel image whose
+/// data is corrupt, are refused without touching the memory they declare: the peak resident
+/// memory of `lumis render` with one as its environment map stays under 64 MiB (it was 3.0 GB
+/// and 400 MB).
+#[cfg(target_os = "linux")]
+#[test]
+fn tiny_hostile_exr_files_do_not_fill_memory() {
+    use crate::common::{SMALL_SCENE, scene_file};
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/exr");
+    let text = SMALL_SCENE.replace(
+        "    ],\n)",
+        "    ],\n    emitters: [(type: \"envmap\", file: \"map.exr\")],\n)",
+    );
+    for (file, reason) in [
+        (
+            "regression-chunk-larger-than-file.exr",
+            "declares more bytes than the data holds",
+        ),
+        (
+            "regression-large-image-corrupt-data.exr",
+            "zlib-compressed data malformed",
+        ),
+    ] {
+        let (dir, _) = scene_file("scene.ron", &text);
+        std::fs::copy(corpus.join(file), dir.path().join("map.exr")).unwrap();
+        let errors = dir.path().join("errors.txt");
+        #[expect(
+            clippy::zombie_processes,
+            reason = "reaped by wait4, which also gives its peak memory"
+        )]
+        let child = std::process::Command::new(env!("CARGO_BIN_EXE_lumis"))
+            .current_dir(dir.path())
+            .args(["render", "scene.ron"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::fs::File::create(&errors).unwrap())
+            .spawn()
+            .unwrap();
+        let (status, peak_kib) = wait_with_peak_memory(&child);
+        let message = std::fs::read_to_string(&errors).unwrap();
+        assert!(status != 0 && message.contains(reason), "{file}: {message}");
+        assert!(peak_kib < 64 * 1024, "{file}: peak {peak_kib} KiB");
+    }
+}
+
+/// Waits for `child` and returns its exit status and its peak resident memory in KiB
+/// (`wait4`'s resource usage, of that child alone).
+#[cfg(target_os = "linux")]
+fn wait_with_peak_memory(child: &std::process::Child) -> (libc::c_int, libc::c_long) {
+    let pid = child.id() as libc::pid_t;
+    let mut status = 0;
+    // SAFETY: rusage is plain data, for which all zeros is a valid value.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `pid` is this process's child, not yet waited for; both pointers are valid.
+    let waited = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    assert_eq!(waited, pid, "wait4: {}", std::io::Error::last_os_error());
+    (status, usage.ru_maxrss)
 }
