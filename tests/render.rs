@@ -375,7 +375,8 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
             continue;
         }
         generate_assets(&path, &scenes);
-        if std::fs::read_to_string(&path).unwrap().contains("plugins:") {
+        let text = std::fs::read_to_string(&path).unwrap();
+        if text.contains("plugins:") {
             example_library();
         }
         let every_aov = format!("integrator.aovs={:?}", lumis::integrators::aovs::NAMES);
@@ -385,7 +386,6 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
         let film_overrides = ["film.width=24", "film.height=16", "sampler.spp=1"];
         let loaded = common::load(&path, &film_overrides)
             .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let text = std::fs::read_to_string(&path).unwrap();
         for integrator in common::integrators() {
             let set = format!("integrator.type={integrator}");
             let overrides: Vec<String> = film_overrides
@@ -400,10 +400,7 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
                 path.parent().unwrap(),
             )
             .unwrap_or_else(|e| panic!("{} with {integrator}: {e}", path.display()));
-            built.preprocess(&loaded.scene);
-            let film = lumis::render::render(&loaded.scene, built.as_ref(), 2, &|_| {})
-                .expect("render")
-                .0;
+            let film = common::render_with(&loaded.scene, built.as_mut(), 2);
             let name = format!("{} with {integrator}", path.display());
             common::assert_finite_outputs(&film, &name);
             assert!(

@@ -1052,7 +1052,8 @@ mod tests {
     fn the_vector_slab_test_answers_as_the_scalar_one() {
         let mut sampler = crate::sampler::Sampler::new(3, 0, 0);
         let mut next = || sampler.next_1d() * 4.0 - 2.0;
-        let mut vector_path_met = 0;
+        // Answers given on the vector path (all reciprocals finite): [missed, met].
+        let mut vector_path = [0usize; 2];
         for case in 0..200_000 {
             let (c, h) = (
                 Vec3::new(next(), next(), next()),
@@ -1093,13 +1094,12 @@ mod tests {
                 met,
                 "{ray:?} against {lo} .. {hi}"
             );
-            vector_path_met += usize::from(met && (1.0 / direction).is_finite());
+            if (1.0 / direction).is_finite() {
+                vector_path[usize::from(met)] += 1;
+            }
         }
-        // Both answers occur often on the vector path.
-        assert!(
-            (30_000..170_000).contains(&vector_path_met),
-            "{vector_path_met}"
-        );
+        // Both answers occur often on the vector path, not only on the scalar one.
+        assert!(vector_path.iter().all(|&n| n > 20_000), "{vector_path:?}");
     }
 
     /// `ends_before_sphere` skips the full sphere test only where it finds no root before the

@@ -108,8 +108,17 @@ pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
 /// measurements) first.
 pub fn render(path: &Path, overrides: &[&str], threads: usize) -> lumis::film::Film {
     let mut loaded = load(path, overrides).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    loaded.integrator.preprocess(&loaded.scene);
-    lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), threads, &|_| {})
+    render_with(&loaded.scene, loaded.integrator.as_mut(), threads)
+}
+
+/// Renders a built scene with `integrator`, after its preprocessing.
+pub fn render_with(
+    scene: &lumis::scene::Scene,
+    integrator: &mut dyn lumis::integrator::Integrator,
+    threads: usize,
+) -> lumis::film::Film {
+    integrator.preprocess(scene);
+    lumis::render::render(scene, integrator, threads, &|_| {})
         .expect("render")
         .0
 }
