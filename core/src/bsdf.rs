@@ -2,7 +2,8 @@
 //! `wo` points toward the viewer, `wi` toward the light; both are unit vectors.
 
 use crate::math::Rgb;
-use glam::{Vec2, Vec3};
+use crate::math::lanes::{Lanes, V3, by_fours};
+use glam::{Vec2, Vec3, Vec4};
 
 /// Which kinds of lobes a BSDF has; integrators use it to skip work (e.g. light sampling is
 /// useless for a purely delta BSDF).
@@ -42,6 +43,69 @@ pub trait Bsdf: Send + Sync {
     /// Draws a direction; `u_lobe` chooses among lobes, `u` places the direction in it.
     fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
     fn flags(&self) -> BsdfFlags;
+
+    /// [`eval_pdf`](Self::eval_pdf) of `wo` with each direction of `wi`, into `out` (as long
+    /// as `wi`): the many samples of one shading point at once. The default calls `eval_pdf`
+    /// for each; a BSDF whose formulas are written over [`Lanes`] evaluates four at a time, bit
+    /// for bit as `eval_pdf`.
+    fn eval_pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+        assert_eq!(wi.len(), out.len(), "one result per direction");
+        for (wi, out) in wi.iter().zip(out) {
+            *out = self.eval_pdf(wo, *wi);
+        }
+    }
+
+    /// [`sample`](Self::sample) for each `(u_lobe, u)` of `u`, into `out` (as long as `u`).
+    /// The default calls `sample` for each; an override must give what `sample` gives, bit
+    /// for bit.
+    fn sample_batch(&self, wo: Vec3, u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
+        assert_eq!(u.len(), out.len(), "one result per sample");
+        for (&(u_lobe, u), out) in u.iter().zip(out) {
+            *out = self.sample(wo, u_lobe, u);
+        }
+    }
+}
+
+/// Samples of a BSDF written over [`Lanes`]: one per lane, `valid` where the lane drew one.
+pub struct BsdfSampleLanes<L: Lanes> {
+    pub valid: L::Mask,
+    pub wi: V3<L>,
+    pub pdf: L,
+    pub weight: V3<L>,
+}
+
+impl<L: Lanes> BsdfSampleLanes<L> {
+    /// [`sample_from_pdf`] in each lane: directions `wi`, drawn where `drawn` is set, whose
+    /// `eval_pdf` is `(value, pdf)`.
+    #[inline(always)]
+    pub fn from_pdf(drawn: L::Mask, wi: V3<L>, (value, pdf): (V3<L>, L)) -> Self {
+        let zero = L::splat(0.0);
+        let weight = value / pdf;
+        let valid = drawn
+            & wi.z.gt(zero)
+            & wi.is_finite()
+            & pdf.gt(zero)
+            & pdf.is_finite()
+            & weight.is_finite();
+        BsdfSampleLanes {
+            valid,
+            wi,
+            pdf,
+            weight,
+        }
+    }
+
+    /// Lane `i`'s sample, if it drew one.
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Option<BsdfSample> {
+        use crate::math::lanes::Mask;
+        self.valid.lane(i).then(|| BsdfSample {
+            wi: self.wi.lane(i),
+            pdf: self.pdf.lane(i),
+            weight: self.weight.lane(i),
+            delta: false,
+        })
+    }
 }
 
 /// The sample of a direction `wi` drawn by a BSDF whose `pdf` is the density it was drawn with:
@@ -62,4 +126,42 @@ pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option
         weight,
         delta: false,
     })
+}
+
+/// [`Bsdf::eval_pdf_batch`] for a BSDF whose `eval_pdf` is written over [`Lanes`]
+/// (`eval_pdf(wo, wi)`): four directions at a time.
+#[inline(always)]
+pub fn eval_pdf_by_fours(
+    wo: Vec3,
+    wi: &[Vec3],
+    out: &mut [(Rgb, f32)],
+    eval_pdf: impl Fn(V3<Vec4>, V3<Vec4>) -> (V3<Vec4>, Vec4),
+) {
+    let wo = V3::splat(wo);
+    by_fours(wi, out, |wi, out| {
+        let (value, pdf) = eval_pdf(wo, V3::from_fn(|i| wi[i]));
+        for (i, out) in out.iter_mut().enumerate() {
+            *out = (value.lane(i), pdf[i]);
+        }
+    });
+}
+
+/// [`Bsdf::sample_batch`] for a BSDF whose `sample` is written over [`Lanes`]
+/// (`sample(wo, u_lobe, (u0, u1))`): four samples at a time.
+#[inline(always)]
+pub fn sample_by_fours(
+    wo: Vec3,
+    u: &[(f32, Vec2)],
+    out: &mut [Option<BsdfSample>],
+    sample: impl Fn(V3<Vec4>, Vec4, (Vec4, Vec4)) -> BsdfSampleLanes<Vec4>,
+) {
+    let wo = V3::splat(wo);
+    by_fours(u, out, |u, out| {
+        let u_lobe = Vec4::from_fn(|i| u[i].0);
+        let u2 = (Vec4::from_fn(|i| u[i].1.x), Vec4::from_fn(|i| u[i].1.y));
+        let samples = sample(wo, u_lobe, u2);
+        for (i, out) in out.iter_mut().enumerate() {
+            *out = samples.lane(i);
+        }
+    });
 }

@@ -1,8 +1,9 @@
 //! The emitter interface: light sources, sampled in solid angle from a reference point.
 
 use crate::math::Rgb;
+use crate::math::lanes::{Lanes, Mask, V3, by_fours};
 use crate::scene::shapes::ShapeGeometry;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 /// The point being lit.
 #[derive(Clone, Copy, Debug)]
@@ -36,6 +37,21 @@ pub struct EmitterSample {
 /// A light source.
 pub trait Emitter: Send + Sync {
     fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample>;
+    /// [`sample_direction`](Self::sample_direction) for each of `u`, into `out` (as long as
+    /// `u`): the many samples of one shading point at once. The default calls
+    /// `sample_direction` for each; an override (an emitter whose formulas are written over
+    /// [`crate::math::lanes::Lanes`]) must give what it gives, bit for bit.
+    fn sample_direction_batch(
+        &self,
+        reference: &ReferencePoint,
+        u: &[Vec2],
+        out: &mut [Option<EmitterSample>],
+    ) {
+        assert_eq!(u.len(), out.len(), "one result per sample");
+        for (u, out) in u.iter().zip(out) {
+            *out = self.sample_direction(reference, *u);
+        }
+    }
     /// The density `sample_direction` has of producing `wi`, which reaches the emitter at `hit`
     /// (`None` for rays that escape the scene, as for an environment map).
     fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32;
@@ -67,6 +83,49 @@ pub trait Emitter: Send + Sync {
     fn is_environment(&self) -> bool {
         false
     }
+}
+
+/// Samples of an emitter at a finite distance written over [`Lanes`]: one per lane, `valid`
+/// where the lane drew one.
+pub struct EmitterSampleLanes<L: Lanes> {
+    pub valid: L::Mask,
+    pub wi: V3<L>,
+    pub position: V3<L>,
+    pub pdf: L,
+}
+
+impl<L: Lanes> EmitterSampleLanes<L> {
+    /// Lane `i`'s sample, if it drew one, arriving with `radiance`.
+    #[inline(always)]
+    pub fn lane(&self, i: usize, radiance: Rgb) -> Option<EmitterSample> {
+        self.valid.lane(i).then(|| EmitterSample {
+            wi: self.wi.lane(i),
+            position: Some(self.position.lane(i)),
+            pdf: self.pdf.lane(i),
+            radiance,
+        })
+    }
+}
+
+/// [`Emitter::sample_direction_batch`] for an emitter whose `sample_direction` is written over
+/// [`Lanes`] (`sample(reference, (u0, u1))`) and whose samples arrive with `radiance`: four
+/// samples at a time.
+#[inline(always)]
+pub fn sample_direction_by_fours(
+    reference: &ReferencePoint,
+    u: &[Vec2],
+    out: &mut [Option<EmitterSample>],
+    radiance: Rgb,
+    sample: impl Fn(V3<Vec4>, (Vec4, Vec4)) -> EmitterSampleLanes<Vec4>,
+) {
+    let reference = V3::splat(reference.position);
+    by_fours(u, out, |u, out| {
+        let u = (Vec4::from_fn(|i| u[i].x), Vec4::from_fn(|i| u[i].y));
+        let samples = sample(reference, u);
+        for (i, out) in out.iter_mut().enumerate() {
+            *out = samples.lane(i, radiance);
+        }
+    });
 }
 
 /// What an emitter plugin is built from besides its parameters.

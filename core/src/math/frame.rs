@@ -1,5 +1,6 @@
 //! Orthonormal shading frames: BSDFs work in a local frame whose z axis is the shading normal.
 
+use crate::math::lanes::{Lanes, V3};
 use glam::Vec3;
 
 /// An orthonormal basis (s, t, n), n the shading normal.
@@ -14,12 +15,12 @@ impl Frame {
     /// Builds a frame around a unit normal with the branchless construction of Duff et al. 2017
     /// ("Building an orthonormal basis, revisited"), exact for n = ±z.
     pub fn from_normal(n: Vec3) -> Self {
-        let sign = 1.0f32.copysign(n.z);
-        let a = -1.0 / (sign + n.z);
-        let b = n.x * n.y * a;
-        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
-        Frame { s, t, n }
+        let f = FrameLanes::<f32>::from_normal(V3::splat(n));
+        Frame {
+            s: f.s.lane(0),
+            t: f.t.lane(0),
+            n,
+        }
     }
 
     #[inline]
@@ -29,6 +30,34 @@ impl Frame {
 
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// [`Frame`]s over [`Lanes`]: one per lane, built and applied as `Frame` is, bit for bit.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameLanes<L> {
+    pub s: V3<L>,
+    pub t: V3<L>,
+    pub n: V3<L>,
+}
+
+impl<L: Lanes> FrameLanes<L> {
+    /// As [`Frame::from_normal`] in each lane.
+    #[inline(always)]
+    pub fn from_normal(n: V3<L>) -> Self {
+        let one = L::splat(1.0);
+        let sign = one.copysign(n.z);
+        let a = -one / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = V3::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = V3::new(b, sign + n.y * n.y * a, -n.y);
+        FrameLanes { s, t, n }
+    }
+
+    /// As [`Frame::to_world`] in each lane.
+    #[inline(always)]
+    pub fn to_world(&self, v: V3<L>) -> V3<L> {
         self.s * v.x + self.t * v.y + self.n * v.z
     }
 }

@@ -2,12 +2,13 @@
 
 pub mod distribution;
 pub mod frame;
+pub mod lanes;
 pub mod rgb;
 pub mod warp;
 
 pub use distribution::{Distribution1D, Distribution2D};
 pub use frame::Frame;
-pub use rgb::{Rgb, luminance};
+pub use rgb::{Rgb, luminance, luminance_lanes};
 
 /// Asks the processor to bring `value`'s cache line in, so that a read soon after finds it
 /// there (x86-64; elsewhere nothing). For a table larger than the caches read at a position

@@ -1,50 +1,77 @@
 //! Warps from the unit square to directions and points, each with its density.
 
+use crate::math::lanes::{Lanes, V3};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
 
 /// Concentric map of the unit square to the unit disk (Shirley–Chiu), area-preserving up to π.
 pub fn square_to_disk_concentric(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (o.y, PI * 0.5 - FRAC_PI_4 * (o.x / o.y))
-    };
-    r * Vec2::new(theta.cos(), theta.sin())
+    let (x, y) = square_to_disk_concentric_lanes(u.x, u.y);
+    Vec2::new(x, y)
+}
+
+/// [`square_to_disk_concentric`] in each lane of (`u0`, `u1`).
+#[inline(always)]
+pub fn square_to_disk_concentric_lanes<L: Lanes>(u0: L, u1: L) -> (L, L) {
+    let (one, zero) = (L::splat(1.0), L::splat(0.0));
+    let (ox, oy) = (L::splat(2.0) * u0 - one, L::splat(2.0) * u1 - one);
+    let x_larger = ox.abs().gt(oy.abs());
+    let r = L::select(x_larger, ox, oy);
+    let theta = L::select(
+        x_larger,
+        L::splat(FRAC_PI_4) * (oy / ox),
+        L::splat(PI * 0.5) - L::splat(FRAC_PI_4) * (ox / oy),
+    );
+    let (sin, cos) = theta.sin_cos();
+    let centre = ox.eq(zero) & oy.eq(zero);
+    (
+        L::select(centre, zero, r * cos),
+        L::select(centre, zero, r * sin),
+    )
 }
 
 /// Cosine-weighted hemisphere around +z; density cos θ / π.
 pub fn square_to_cosine_hemisphere(u: Vec2) -> Vec3 {
-    let d = square_to_disk_concentric(u);
-    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
-    Vec3::new(d.x, d.y, z)
+    square_to_cosine_hemisphere_lanes::<f32>(u.x, u.y).lane(0)
+}
+
+/// [`square_to_cosine_hemisphere`] in each lane of (`u0`, `u1`).
+#[inline(always)]
+pub fn square_to_cosine_hemisphere_lanes<L: Lanes>(u0: L, u1: L) -> V3<L> {
+    let (x, y) = square_to_disk_concentric_lanes(u0, u1);
+    let z = (L::splat(1.0) - (x * x + y * y)).max(L::splat(0.0)).sqrt();
+    V3::new(x, y, z)
 }
 
 /// Density of [`square_to_cosine_hemisphere`] in solid angle.
 #[inline]
 pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
-    if cos_theta > 0.0 {
-        cos_theta * FRAC_1_PI
-    } else {
-        0.0
-    }
+    cosine_hemisphere_pdf_lanes(cos_theta)
+}
+
+/// [`cosine_hemisphere_pdf`] in each lane.
+#[inline(always)]
+pub fn cosine_hemisphere_pdf_lanes<L: Lanes>(cos_theta: L) -> L {
+    let zero = L::splat(0.0);
+    L::select(cos_theta.gt(zero), cos_theta * L::splat(FRAC_1_PI), zero)
 }
 
 /// Uniform barycentric coordinates (b0, b1) on a triangle; b2 = 1 − b0 − b1. Density 1/area.
 pub fn square_to_triangle_barycentrics(u: Vec2) -> (f32, f32) {
+    square_to_triangle_barycentrics_lanes(u.x, u.y)
+}
+
+/// [`square_to_triangle_barycentrics`] in each lane of (`u0`, `u1`).
+#[inline(always)]
+pub fn square_to_triangle_barycentrics_lanes<L: Lanes>(u0: L, u1: L) -> (L, L) {
     // Heitz 2019, "A Low-Distortion Map Between Triangle and Square".
-    let (b0, b1) = if u.y > u.x {
-        let b0 = u.x / 2.0;
-        (b0, u.y - b0)
-    } else {
-        let b1 = u.y / 2.0;
-        (u.x - b1, b1)
-    };
-    (b0, b1)
+    let two = L::splat(2.0);
+    let upper = u1.gt(u0);
+    let (b0_upper, b1_lower) = (u0 / two, u1 / two);
+    (
+        L::select(upper, b0_upper, u0 - b1_lower),
+        L::select(upper, u1 - b0_upper, b1_lower),
+    )
 }
 
 #[cfg(test)]

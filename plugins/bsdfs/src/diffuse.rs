@@ -6,10 +6,13 @@
 //!
 //! One-sided in the shading frame: directions below the shading horizon get zero.
 
-use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample};
+use glam::{Vec2, Vec3, Vec4};
+use lumis_core::bsdf::{
+    Bsdf, BsdfFlags, BsdfSample, BsdfSampleLanes, eval_pdf_by_fours, sample_by_fours,
+};
 use lumis_core::math::Rgb;
-use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+use lumis_core::math::lanes::{Lanes, V3};
+use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::BsdfPlugin;
 use std::f32::consts::FRAC_1_PI;
@@ -23,36 +26,58 @@ impl Diffuse {
     pub fn new(reflectance: Rgb) -> Self {
         Diffuse { reflectance }
     }
+
+    /// `eval` and `pdf` in each lane: the one formula of the scalar and the batch methods.
+    #[inline(always)]
+    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
+        let zero = L::splat(0.0);
+        let below = wo.z.le(zero);
+        let value = V3::splat(self.reflectance) * (L::splat(FRAC_1_PI) * wi.z);
+        (
+            V3::select(below | wi.z.le(zero), V3::zero(), value),
+            L::select(below, zero, cosine_hemisphere_pdf_lanes(wi.z)),
+        )
+    }
+
+    /// `sample` in each lane.
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: V3<L>, (u0, u1): (L, L)) -> BsdfSampleLanes<L> {
+        let zero = L::splat(0.0);
+        let wi = square_to_cosine_hemisphere_lanes(u0, u1);
+        let pdf = cosine_hemisphere_pdf_lanes(wi.z);
+        BsdfSampleLanes {
+            valid: !wo.z.le(zero) & pdf.gt(zero),
+            wi,
+            pdf,
+            weight: V3::splat(self.reflectance),
+        }
+    }
 }
 
 impl Bsdf for Diffuse {
     fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Rgb::ZERO;
-        }
-        self.reflectance * (FRAC_1_PI * wi.z)
+        self.eval_pdf(wo, wi).0
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 {
-            0.0
-        } else {
-            cosine_hemisphere_pdf(wi.z)
-        }
+        self.eval_pdf(wo, wi).1
+    }
+
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        let (value, pdf) = self.eval_pdf_lanes::<f32>(V3::splat(wo), V3::splat(wi));
+        (value.lane(0), pdf)
     }
 
     fn sample(&self, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let wi = square_to_cosine_hemisphere(u);
-        let pdf = cosine_hemisphere_pdf(wi.z);
-        (pdf > 0.0).then_some(BsdfSample {
-            wi,
-            pdf,
-            weight: self.reflectance,
-            delta: false,
-        })
+        self.sample_lanes::<f32>(V3::splat(wo), (u.x, u.y)).lane(0)
+    }
+
+    fn eval_pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+        eval_pdf_by_fours(wo, wi, out, |wo, wi| self.eval_pdf_lanes::<Vec4>(wo, wi));
+    }
+
+    fn sample_batch(&self, wo: Vec3, u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
+        sample_by_fours(wo, u, out, |wo, _, u| self.sample_lanes::<Vec4>(wo, u));
     }
 
     fn flags(&self) -> BsdfFlags {

@@ -20,10 +20,13 @@
 //! with the cosine-weighted hemisphere, chosen in proportion to their estimated albedos for
 //! the given ωo; `pdf` is exactly that mixture's density.
 
-use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample, sample_from_pdf};
-use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use lumis_core::math::{Rgb, luminance};
+use glam::{Vec2, Vec3, Vec4};
+use lumis_core::bsdf::{
+    Bsdf, BsdfFlags, BsdfSample, BsdfSampleLanes, eval_pdf_by_fours, sample_by_fours,
+};
+use lumis_core::math::lanes::{Lanes, Mask, V3};
+use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
+use lumis_core::math::{Rgb, luminance, luminance_lanes};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::BsdfPlugin;
 use std::f32::consts::PI;
@@ -45,13 +48,23 @@ pub enum Masking {
     Separable,
 }
 
-/// Schlick's approximation of the Fresnel reflectance.
-fn schlick(f0: Rgb, cos: f32) -> Rgb {
-    let m = (1.0 - cos).clamp(0.0, 1.0);
+/// Schlick's approximation of the Fresnel reflectance, per channel.
+#[inline(always)]
+fn schlick<L: Lanes>(f0: Rgb, cos: L) -> V3<L> {
+    let m = (L::splat(1.0) - cos).clamp(L::splat(0.0), L::splat(1.0));
     let m5 = (m * m) * (m * m) * m;
-    f0 + (Rgb::ONE - f0) * m5
+    V3::splat(f0) + V3::splat(Rgb::ONE - f0) * m5
 }
 
+/// x⁵, as products.
+#[inline(always)]
+fn pow5<L: Lanes>(x: L) -> L {
+    let x2 = x * x;
+    x2 * x2 * x
+}
+
+/// The lobes' formulas over [`Lanes`]: the scalar methods run them on one sample, the batch
+/// methods on four, with the same operations.
 impl Glossy {
     pub fn new(alpha: f32, f0: Rgb, diffuse: Rgb, masking: Masking) -> Self {
         Glossy {
@@ -62,154 +75,174 @@ impl Glossy {
         }
     }
 
-    /// GGX normal distribution D(h), h in the local frame.
-    fn d(&self, h: Vec3) -> f32 {
-        if h.z <= 0.0 {
-            return 0.0;
-        }
-        let a2 = self.alpha * self.alpha;
+    /// GGX normal distribution D(h), h in the local frame; 0 for h below the surface.
+    #[inline(always)]
+    fn d<L: Lanes>(&self, h: V3<L>) -> L {
+        let a2 = L::splat(self.alpha * self.alpha);
         let cos2 = h.z * h.z;
         // (h.x² + h.y²)/α² + h.z², the form that keeps its precision for tiny α.
         let t = (h.x * h.x + h.y * h.y) / a2 + cos2;
-        1.0 / (PI * a2 * t * t)
+        let d = L::splat(1.0) / (L::splat(PI) * a2 * t * t);
+        L::select(h.z.le(L::splat(0.0)), L::splat(0.0), d)
     }
 
-    /// Smith's Λ(w) for GGX.
-    fn lambda(&self, w: Vec3) -> f32 {
+    /// Smith's Λ(w) for GGX; infinite at grazing w.
+    #[inline(always)]
+    fn lambda<L: Lanes>(&self, w: V3<L>) -> L {
         let cos2 = w.z * w.z;
-        if cos2 == 0.0 {
-            return f32::INFINITY;
-        }
         let tan2 = (w.x * w.x + w.y * w.y) / cos2;
-        ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0) * 0.5
+        let a2 = L::splat(self.alpha * self.alpha);
+        let lambda = ((L::splat(1.0) + a2 * tan2).sqrt() - L::splat(1.0)) * L::splat(0.5);
+        L::select(cos2.eq(L::splat(0.0)), L::splat(f32::INFINITY), lambda)
     }
 
     /// Masking-shadowing G2(ωo, ωi), given Λ(ωo).
-    fn g2(&self, lambda_o: f32, wi: Vec3) -> f32 {
-        let li = self.lambda(wi);
+    #[inline(always)]
+    fn g2<L: Lanes>(&self, lambda_o: L, wi: V3<L>) -> L {
+        let (one, lambda_i) = (L::splat(1.0), self.lambda(wi));
         match self.masking {
-            Masking::HeightCorrelated => 1.0 / (1.0 + lambda_o + li),
-            Masking::Separable => 1.0 / ((1.0 + lambda_o) * (1.0 + li)),
+            Masking::HeightCorrelated => one / (one + lambda_o + lambda_i),
+            Masking::Separable => one / ((one + lambda_o) * (one + lambda_i)),
         }
     }
 
     /// Probability of sampling the specular lobe for this ωo.
-    fn specular_probability(&self, wo: Vec3) -> f32 {
+    #[inline(always)]
+    fn specular_probability<L: Lanes>(&self, wo: V3<L>) -> L {
         if self.diffuse == Rgb::ZERO {
-            return 1.0;
+            return L::splat(1.0);
         }
-        let spec = luminance(schlick(self.f0, wo.z));
-        let base = luminance(self.diffuse) * (1.0 - self.f0.max_element());
-        (spec / (spec + base)).clamp(0.1, 0.9)
+        let spec = luminance_lanes(schlick(self.f0, wo.z));
+        let base = L::splat(luminance(self.diffuse) * (1.0 - self.f0.max_element()));
+        (spec / (spec + base)).clamp(L::splat(0.1), L::splat(0.9))
     }
 
-    fn diffuse_term(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        let fo = 1.0 - (1.0 - 0.5 * wo.z).powi(5);
-        let fi = 1.0 - (1.0 - 0.5 * wi.z).powi(5);
-        self.diffuse * (1.0 - self.f0.max_element()) * (28.0 / (23.0 * PI) * fo * fi)
-    }
-
-    /// The specular lobe's F D G2 / (4 cos θo cos θi) · cos θi at half vector h (h.z > 0), given
-    /// D(h) and Λ(ωo); zero where it is not finite.
-    fn specular_value(&self, wo: Vec3, wi: Vec3, h: Vec3, d: f32, lambda_o: f32) -> Rgb {
-        let spec = schlick(self.f0, wo.dot(h)) * (d * self.g2(lambda_o, wi) / (4.0 * wo.z));
-        if spec.is_finite() { spec } else { Rgb::ZERO }
+    /// The specular lobe's F D G2 / (4 cos θo cos θi) · cos θi at half vector h, given D(h) and
+    /// Λ(ωo); zero where it is not finite.
+    #[inline(always)]
+    fn specular_value<L: Lanes>(&self, wo: V3<L>, wi: V3<L>, h: V3<L>, d: L, lambda_o: L) -> V3<L> {
+        let spec =
+            schlick(self.f0, wo.dot(h)) * (d * self.g2(lambda_o, wi) / (L::splat(4.0) * wo.z));
+        V3::select(spec.is_finite(), spec, V3::zero())
     }
 
     /// The specular lobe's sampling density (VNDF: D_ωo(h) / (4 ωo·h) = G1(ωo) D(h) / (4 cos
     /// θo)) given D(h) and Λ(ωo); zero where it is not finite.
-    fn specular_pdf(&self, wo: Vec3, d: f32, lambda_o: f32) -> f32 {
-        let pdf = (1.0 / (1.0 + lambda_o)) * d / (4.0 * wo.z);
-        if pdf.is_finite() { pdf } else { 0.0 }
-    }
-
-    /// The mixture density of the two lobes, given the specular one's.
-    fn mixture_pdf(&self, wo: Vec3, wi: Vec3, specular_pdf: f32) -> f32 {
-        let p = self.specular_probability(wo);
-        p * specular_pdf + (1.0 - p) * cosine_hemisphere_pdf(wi.z)
+    #[inline(always)]
+    fn specular_pdf<L: Lanes>(&self, wo: V3<L>, d: L, lambda_o: L) -> L {
+        let one = L::splat(1.0);
+        let pdf = (one / (one + lambda_o)) * d / (L::splat(4.0) * wo.z);
+        L::select(pdf.is_finite(), pdf, L::splat(0.0))
     }
 
     /// The diffuse base's value · cos θi (zero without a base, at no cost).
-    fn diffuse_value(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    #[inline(always)]
+    fn diffuse_value<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> V3<L> {
         if self.diffuse == Rgb::ZERO {
-            return Rgb::ZERO;
+            return V3::zero();
         }
-        self.diffuse_term(wo, wi) * wi.z
+        let one = L::splat(1.0);
+        let fo = one - pow5(one - L::splat(0.5) * wo.z);
+        let fi = one - pow5(one - L::splat(0.5) * wi.z);
+        let albedo = self.diffuse * (1.0 - self.f0.max_element());
+        V3::splat(albedo) * (L::splat(28.0 / (23.0 * PI)) * fo * fi) * wi.z
     }
 
-    /// Heitz 2018: a visible normal for ωo.
-    fn sample_visible_normal(&self, wo: Vec3, u: Vec2) -> Vec3 {
-        let vh = Vec3::new(self.alpha * wo.x, self.alpha * wo.y, wo.z).normalize();
+    /// `eval` and `pdf` of the mixture; zero where ωo or ωi is below the surface.
+    #[inline(always)]
+    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
+        let zero = L::splat(0.0);
+        let h = (wo + wi).normalize_or_zero();
+        let (d, lambda_o) = (self.d(h), self.lambda(wo));
+        let facing = h.z.gt(zero);
+        let value = self.diffuse_value(wo, wi)
+            + V3::select(
+                facing,
+                self.specular_value(wo, wi, h, d, lambda_o),
+                V3::zero(),
+            );
+        let specular_pdf = L::select(facing, self.specular_pdf(wo, d, lambda_o), zero);
+        let p = self.specular_probability(wo);
+        let pdf = p * specular_pdf + (L::splat(1.0) - p) * cosine_hemisphere_pdf_lanes(wi.z);
+        let below = wo.z.le(zero) | wi.z.le(zero);
+        (
+            V3::select(below, V3::zero(), value),
+            L::select(below, zero, pdf),
+        )
+    }
+
+    /// Heitz 2018: a visible normal for ωo (above the surface).
+    #[inline(always)]
+    fn sample_visible_normal<L: Lanes>(&self, wo: V3<L>, (u0, u1): (L, L)) -> V3<L> {
+        let (zero, one, alpha) = (L::splat(0.0), L::splat(1.0), L::splat(self.alpha));
+        // The view direction in the hemisphere configuration (α stretched to 1).
+        let vh = V3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
         let len2 = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if len2 > 0.0 {
-            Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt()
-        } else {
-            Vec3::X
-        };
+        let t1 = V3::select(
+            len2.gt(zero),
+            V3::new(-vh.y, vh.x, zero) / len2.sqrt(),
+            V3::splat(Vec3::X),
+        );
         let t2 = vh.cross(t1);
-        let r = u.x.sqrt();
-        let phi = 2.0 * PI * u.y;
-        let p1 = r * phi.cos();
-        let s = 0.5 * (1.0 + vh.z);
-        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
-        let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
-        Vec3::new(self.alpha * nh.x, self.alpha * nh.y, nh.z.max(0.0)).normalize()
+        // A point on the projected disk, warped toward the visible half.
+        let r = u0.sqrt();
+        let (sin, cos) = (L::splat(2.0 * PI) * u1).sin_cos();
+        let p1 = r * cos;
+        let s = L::splat(0.5) * (one + vh.z);
+        let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * r * sin;
+        let nh = t1 * p1 + t2 * p2 + vh * (one - p1 * p1 - p2 * p2).max(zero).sqrt();
+        V3::new(alpha * nh.x, alpha * nh.y, nh.z.max(zero)).normalize()
+    }
+
+    /// `sample` in each lane: the specular lobe by visible normals or the diffuse base, then
+    /// its value and density from `eval_pdf` (as [`lumis_core::bsdf::sample_from_pdf`]).
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, wo: V3<L>, u_lobe: L, u: (L, L)) -> BsdfSampleLanes<L> {
+        let specular = u_lobe.lt(self.specular_probability(wo));
+        let reflected = |h: V3<L>| h * (L::splat(2.0) * wo.dot(h)) - wo;
+        let wi = if specular.all() {
+            reflected(self.sample_visible_normal(wo, u))
+        } else if !specular.any() {
+            square_to_cosine_hemisphere_lanes(u.0, u.1)
+        } else {
+            V3::select(
+                specular,
+                reflected(self.sample_visible_normal(wo, u)),
+                square_to_cosine_hemisphere_lanes(u.0, u.1),
+            )
+        };
+        let above = !wo.z.le(L::splat(0.0));
+        BsdfSampleLanes::from_pdf(above, wi, self.eval_pdf_lanes(wo, wi))
     }
 }
 
 impl Bsdf for Glossy {
     fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Rgb::ZERO;
-        }
-        let h = (wo + wi).normalize_or_zero();
-        let f = self.diffuse_value(wo, wi);
-        if h.z <= 0.0 {
-            return f;
-        }
-        f + self.specular_value(wo, wi, h, self.d(h), self.lambda(wo))
+        self.eval_pdf(wo, wi).0
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        let h = (wo + wi).normalize_or_zero();
-        let specular_pdf = if h.z > 0.0 {
-            self.specular_pdf(wo, self.d(h), self.lambda(wo))
-        } else {
-            0.0
-        };
-        self.mixture_pdf(wo, wi, specular_pdf)
+        self.eval_pdf(wo, wi).1
     }
 
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return (Rgb::ZERO, 0.0);
-        }
-        let h = (wo + wi).normalize_or_zero();
-        let f = self.diffuse_value(wo, wi);
-        if h.z <= 0.0 {
-            return (f, self.mixture_pdf(wo, wi, 0.0));
-        }
-        let (d, lambda_o) = (self.d(h), self.lambda(wo));
-        (
-            f + self.specular_value(wo, wi, h, d, lambda_o),
-            self.mixture_pdf(wo, wi, self.specular_pdf(wo, d, lambda_o)),
-        )
+        let (value, pdf) = self.eval_pdf_lanes::<f32>(V3::splat(wo), V3::splat(wi));
+        (value.lane(0), pdf)
     }
 
     fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let wi = if u_lobe < self.specular_probability(wo) {
-            let h = self.sample_visible_normal(wo, u);
-            2.0 * wo.dot(h) * h - wo
-        } else {
-            square_to_cosine_hemisphere(u)
-        };
-        sample_from_pdf(self, wo, wi)
+        self.sample_lanes::<f32>(V3::splat(wo), u_lobe, (u.x, u.y))
+            .lane(0)
+    }
+
+    fn eval_pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+        eval_pdf_by_fours(wo, wi, out, |wo, wi| self.eval_pdf_lanes::<Vec4>(wo, wi));
+    }
+
+    fn sample_batch(&self, wo: Vec3, u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
+        sample_by_fours(wo, u, out, |wo, u_lobe, u| {
+            self.sample_lanes::<Vec4>(wo, u_lobe, u)
+        });
     }
 
     fn flags(&self) -> BsdfFlags {

@@ -406,6 +406,181 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
     }
 }
 
+/// The batch entry points give what the single calls give, bit for bit: `sample_batch` what
+/// `sample` gives for each `(u_lobe, u)`, `eval_pdf_batch` what `eval_pdf` gives for each
+/// direction. Batches of every length a group of four can end with (1 to 3 left over, and
+/// longer ones), for ωo at the test incidences and hostile ones (below the horizon, grazing,
+/// exactly normal, a hair above the horizon, off the normal by 1e-20); the numbers from a
+/// seeded stream with the corners 0, 1/2 and 0.9999999 in some lanes, the directions sampled,
+/// uniform over the sphere and special (the poles, the horizon, just below it, the mirror
+/// direction). Each output starts as a NaN sentinel, so an element the batch leaves unwritten
+/// fails.
+#[test]
+fn batches_give_what_single_calls_give_bit_for_bit() {
+    const LENGTHS: [usize; 7] = [1, 2, 3, 4, 5, 7, 64];
+    const ROUNDS: usize = 40;
+    const CORNERS: [f32; 3] = [0.0, 0.5, 0.999_999_9];
+    let hostile = [
+        -incident(0.5),
+        Vec3::Z,
+        Vec3::new(1.0, 0.0, 1e-7).normalize(),
+        Vec3::new(1e-20, 0.0, 1.0).normalize(),
+        Vec3::new(0.6, 0.8, -1e-7),
+        -Vec3::Z,
+    ];
+    let special = |wo: Vec3| {
+        [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.0, -1.0, 0.0),
+            incident(1e-3),
+            Vec3::new(1.0, 0.0, 1e-7).normalize(),
+            Vec3::new(0.6, 0.8, -1e-7),
+            Vec3::new(1e-20, 0.0, 1.0),
+            Vec3::new(0.3, -0.4, -0.866),
+            wo,
+            -wo,
+            Vec3::new(-wo.x, -wo.y, wo.z),
+        ]
+    };
+    let sample_bits = |s: Option<lumis_core::bsdf::BsdfSample>| {
+        s.map(|s| {
+            (
+                s.wi.to_array().map(f32::to_bits),
+                s.pdf.to_bits(),
+                s.weight.to_array().map(f32::to_bits),
+                s.delta,
+            )
+        })
+    };
+    let eval_pdf_bits = |(f, p): (Vec3, f32)| (f.to_array().map(f32::to_bits), p.to_bits());
+    let sentinel = lumis_core::bsdf::BsdfSample {
+        wi: Vec3::NAN,
+        pdf: f32::NAN,
+        weight: Vec3::NAN,
+        delta: true,
+    };
+    // The incidences, then the hostile ones not among them (incident(1) is +Z).
+    let mut incidences: Vec<Vec3> = INCIDENT.map(incident).to_vec();
+    for wo in hostile {
+        if !incidences.contains(&wo) {
+            incidences.push(wo);
+        }
+    }
+    let (mut some_overall, mut none_overall, mut none_above) = (0usize, 0usize, 0usize);
+    // Batches in which some lanes give a sample and others none, with wo above the horizon:
+    // where a lane's mask matters.
+    let mut mixed = 0usize;
+    for (name, b) in all_bsdfs() {
+        let (mut some_above, mut positive_above) = (0usize, 0usize);
+        for &wo in &incidences {
+            let mut s = Sampler::new(test_seed(), 14, 15);
+            let (mut some, mut positive) = (0usize, 0usize);
+            for round in 0..ROUNDS {
+                for len in LENGTHS {
+                    // (u_lobe, u): from the stream, with corners in some lanes (one number,
+                    // two, or all three).
+                    let u: Vec<(f32, Vec2)> = (0..len)
+                        .map(|k| {
+                            let (mut ul, mut u) = (s.next_1d(), s.next_2d());
+                            let corner = CORNERS[(s.next_1d() * 3.0) as usize];
+                            match (k * 7 + round * 3) % 8 {
+                                0 => ul = corner,
+                                1 => u.x = corner,
+                                2 => u.y = corner,
+                                3 => (ul, u) = (corner, Vec2::splat(corner)),
+                                4 => u = Vec2::new(corner, CORNERS[(k + round) % 3]),
+                                _ => {}
+                            }
+                            (ul, u)
+                        })
+                        .collect();
+                    let mut out = vec![Some(sentinel); len];
+                    b.sample_batch(wo, &u, &mut out);
+                    let drawn = out.iter().filter(|s| s.is_some()).count();
+                    // (Of the BSDFs with their own batch code.)
+                    if name == "diffuse" || name.starts_with("glossy") {
+                        mixed += (drawn > 0 && drawn < len) as usize;
+                    }
+                    for (k, (&(ul, uk), batch)) in u.iter().zip(&out).enumerate() {
+                        let single = b.sample(wo, ul, uk);
+                        assert_eq!(
+                            sample_bits(*batch),
+                            sample_bits(single),
+                            "{name}: sample_batch of {len}, element {k}: wo {wo:?}, u_lobe {ul:?}, \
+                             u {uk:?}: batch {batch:?}, single {single:?}"
+                        );
+                        some += single.is_some() as usize;
+                        none_overall += single.is_none() as usize;
+                        none_above += (single.is_none() && wo.z > 0.0) as usize;
+                    }
+                    // Directions: sampled (a uniform one where sampling fails), uniform over
+                    // the sphere, and special.
+                    let wi: Vec<Vec3> = (0..len)
+                        .map(|k| {
+                            let (ul, u) = (s.next_1d(), s.next_2d());
+                            let uniform = || {
+                                let z = 1.0 - 2.0 * u.x;
+                                let r = (1.0 - z * z).max(0.0).sqrt();
+                                let phi = std::f32::consts::TAU * u.y;
+                                Vec3::new(r * phi.cos(), r * phi.sin(), z)
+                            };
+                            match (k + round) % 3 {
+                                0 => b.sample(wo, ul, u).map_or_else(uniform, |smp| smp.wi),
+                                1 => uniform(),
+                                _ => {
+                                    let special = special(wo);
+                                    special[((ul * special.len() as f32) as usize)
+                                        .min(special.len() - 1)]
+                                }
+                            }
+                        })
+                        .collect();
+                    let mut out = vec![(Vec3::NAN, f32::NAN); len];
+                    b.eval_pdf_batch(wo, &wi, &mut out);
+                    for (k, (&wik, &batch)) in wi.iter().zip(&out).enumerate() {
+                        let single = b.eval_pdf(wo, wik);
+                        assert_eq!(
+                            eval_pdf_bits(batch),
+                            eval_pdf_bits(single),
+                            "{name}: eval_pdf_batch of {len}, element {k}: wo {wo:?}, wi \
+                             {wik:?}: batch {batch:?}, single {single:?}"
+                        );
+                        positive += (single.1 > 0.0) as usize;
+                    }
+                }
+            }
+            some_overall += some;
+            if wo.z > 0.0 {
+                some_above += some;
+                positive_above += positive;
+            }
+            if INCIDENT.map(incident).contains(&wo) {
+                assert!(
+                    some >= 1_000,
+                    "{name}: only {some} samples compared at wo {wo:?}"
+                );
+            }
+        }
+        // A delta lobe has no density: its directions are compared all the same.
+        assert!(
+            some_above >= 8_000 && (b.flags().delta || positive_above >= 5_000),
+            "{name}: only {some_above} samples and {positive_above} directions of positive \
+             density compared with wo above the horizon"
+        );
+    }
+    assert!(
+        mixed >= 100,
+        "only {mixed} batches mixed samples and failed ones"
+    );
+    assert!(
+        some_overall > 0 && none_overall > 0 && none_above >= 100,
+        "{some_overall} samples and {none_overall} failed samples ({none_above} with wo above \
+         the horizon): both must be compared"
+    );
+}
+
 /// Directional albedo by sampling: mean weight and its standard error.
 fn albedo(b: &dyn Bsdf, wo: Vec3, n: usize) -> (f64, f64) {
     let mut s = Sampler::new(test_seed(), 8, 7);

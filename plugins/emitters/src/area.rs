@@ -13,11 +13,16 @@
 //! the cone of directions the sphere subtends is sampled uniformly (pbrt-v4 §6.2.4), which is far
 //! better than area sampling for small, distant spheres.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use lumis_core::accel::{Ray, ray_meets_triangle};
-use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, EmitterSample, ReferencePoint};
-use lumis_core::math::warp::square_to_triangle_barycentrics;
-use lumis_core::math::{Distribution1D, Frame, Rgb};
+use lumis_core::emitter::{
+    Emitter, EmitterContext, EmitterHit, EmitterSample, EmitterSampleLanes, ReferencePoint,
+    sample_direction_by_fours,
+};
+use lumis_core::math::frame::FrameLanes;
+use lumis_core::math::lanes::{Lanes, Mask, V3};
+use lumis_core::math::warp::square_to_triangle_barycentrics_lanes;
+use lumis_core::math::{Distribution1D, Rgb};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::EmitterPlugin;
 use lumis_core::scene::shapes::{ShapeGeometry, Sphere};
@@ -42,20 +47,20 @@ pub struct AreaEmitter {
 }
 
 impl AreaEmitter {
-    fn emits_toward(&self, normal: Vec3, wi: Vec3) -> bool {
-        self.two_sided || normal.dot(wi) < 0.0
+    /// Whether the surface emits toward `wi` from a point of normal `normal`.
+    #[inline(always)]
+    fn emits_toward<L: Lanes>(&self, normal: V3<L>, wi: V3<L>) -> L::Mask {
+        normal.dot(wi).lt(L::splat(0.0)) | L::Mask::from_fn(|_| self.two_sided)
     }
+}
 
-    /// Converts an area density at a point seen along `wi` from `distance` to solid angle.
-    fn solid_angle_pdf(pdf_area: f32, distance: f32, normal: Vec3, wi: Vec3) -> f32 {
-        let cos = normal.dot(wi).abs();
-        let pdf = pdf_area * distance * distance / cos;
-        if cos > 0.0 && pdf.is_finite() {
-            pdf
-        } else {
-            0.0
-        }
-    }
+/// Converts an area density at a point seen along `wi` from `distance` to solid angle; 0
+/// where it is not finite.
+#[inline(always)]
+fn solid_angle_pdf<L: Lanes>(pdf_area: f32, distance: L, normal: V3<L>, wi: V3<L>) -> L {
+    let cos = normal.dot(wi).abs();
+    let pdf = L::splat(pdf_area) * distance * distance / cos;
+    L::select(cos.gt(L::splat(0.0)) & pdf.is_finite(), pdf, L::splat(0.0))
 }
 
 /// A triangle's size as [`surely_meets`] needs it.
@@ -95,30 +100,41 @@ const MEETS_TOLERANCE: f32 = 1024.0 * (f32::EPSILON / 2.0);
 /// error over the surface; [`MEETS_TOLERANCE`] times their sum is 21 times the smallest
 /// constant with which `points_deemed_surely_met_are_met` finds no miss. `false`
 /// leaves the decision to the exact test.
-#[inline]
-fn surely_meets(b: [f32; 3], to: Vec3, origin: Vec3, cos: f32, size: TriangleSize) -> bool {
+#[inline(always)]
+fn surely_meets<L: Lanes>(
+    b: [L; 3],
+    to: V3<L>,
+    origin: V3<L>,
+    cos: L,
+    (longest_edge, inv_min_height): (L, L),
+) -> L::Mask {
     let distance = to.length();
-    let lengths = size.longest_edge + distance + origin.length() + (origin + to).length();
-    let tolerance = MEETS_TOLERANCE * lengths * size.inv_min_height / cos;
-    b[0].min(b[1]).min(b[2]) > tolerance && distance > tolerance * size.longest_edge
+    let lengths = longest_edge + distance + origin.length() + (origin + to).length();
+    let tolerance = L::splat(MEETS_TOLERANCE) * lengths * inv_min_height / cos;
+    b[0].min(b[1]).min(b[2]).gt(tolerance) & distance.gt(tolerance * longest_edge)
 }
 
 /// sin²θ of the cone a sphere of radius r subtends from distance d, and 1 − cos θ, computed so
 /// that tiny cones do not round to zero.
-fn cone(radius: f32, distance2: f32) -> (f32, f32) {
-    let sin2_max = radius * radius / distance2;
-    let one_minus_cos_max = if sin2_max < 1e-3 {
-        // 1 − √(1 − x) = x/2 + x²/8 + ..., exact enough here and free of cancellation.
-        sin2_max * 0.5 + sin2_max * sin2_max * 0.125
-    } else {
-        1.0 - (1.0 - sin2_max).max(0.0).sqrt()
-    };
-    (sin2_max, one_minus_cos_max)
+#[inline(always)]
+fn cone<L: Lanes>(radius: f32, distance2: L) -> (L, L) {
+    let sin2_max = L::splat(radius * radius) / distance2;
+    // 1 − √(1 − x) = x/2 + x²/8 + ..., exact enough for small x and free of cancellation.
+    let series = sin2_max * L::splat(0.5) + sin2_max * sin2_max * L::splat(0.125);
+    let direct = L::splat(1.0) - (L::splat(1.0) - sin2_max).max(L::splat(0.0)).sqrt();
+    (
+        sin2_max,
+        L::select(sin2_max.lt(L::splat(1e-3)), series, direct),
+    )
 }
 
-impl Emitter for AreaEmitter {
-    fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let (position, normal, pdf, wi) = match &self.surface {
+impl AreaEmitter {
+    /// `sample_direction` in each lane, from the reference points `reference`: the one formula
+    /// of the scalar and the batch methods.
+    #[inline(always)]
+    fn sample_lanes<L: Lanes>(&self, reference: V3<L>, (u0, u1): (L, L)) -> EmitterSampleLanes<L> {
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        let (position, normal, pdf, wi, met) = match &self.surface {
             Surface::Triangles {
                 triangles,
                 normals,
@@ -126,85 +142,136 @@ impl Emitter for AreaEmitter {
                 by_area,
                 area,
             } => {
-                let (i, ux) = by_area.sample_reuse(u.x);
-                let (b0, b1) = square_to_triangle_barycentrics(Vec2::new(ux, u.y));
-                let [p0, p1, p2] = triangles[i];
-                let b2 = 1.0 - b0 - b1;
-                let p = b0 * p0 + b1 * p1 + b2 * p2;
-                let to = p - reference.position;
+                let mut picked = [(0, 0.0); 4];
+                for (i, picked) in picked.iter_mut().enumerate().take(L::WIDTH) {
+                    *picked = by_area.sample_reuse(u0.lane(i));
+                }
+                let (b0, b1) =
+                    square_to_triangle_barycentrics_lanes(L::from_fn(|i| picked[i].1), u1);
+                let b2 = one - b0 - b1;
+                let vertex = |k: usize| V3::from_fn(|i| triangles[picked[i].0][k]);
+                let p = vertex(0) * b0 + vertex(1) * b1 + vertex(2) * b2;
+                let to = p - reference;
                 let wi = to.normalize_or_zero();
+                let normal = V3::from_fn(|i| normals[picked[i].0]);
                 // A point within a few ulps of an edge (u at 0 or 1/2) is reached along the
                 // rounded direction `wi` only by chance: where the ray misses the triangle, a
                 // ray traced along `wi` finds no light (pdf_direction 0) and so must this sample.
                 // Points well inside need not be tested.
-                let cos = normals[i].dot(wi).abs();
-                if !surely_meets([b0, b1, b2], to, reference.position, cos, sizes[i]) {
-                    let ray = Ray {
-                        origin: reference.position,
-                        direction: wi,
-                        t_max: f32::INFINITY,
-                    };
-                    if !ray_meets_triangle(&ray, &triangles[i]) {
-                        return None;
-                    }
-                }
-                let pdf = Self::solid_angle_pdf(1.0 / area, to.length(), normals[i], wi);
-                (p, normals[i], pdf, wi)
+                let cos = normal.dot(wi).abs();
+                let size = (
+                    L::from_fn(|i| sizes[picked[i].0].longest_edge),
+                    L::from_fn(|i| sizes[picked[i].0].inv_min_height),
+                );
+                let sure = surely_meets([b0, b1, b2], to, reference, cos, size);
+                let met = if sure.all() {
+                    sure
+                } else {
+                    L::Mask::from_fn(|i| {
+                        sure.lane(i) || {
+                            let ray = Ray {
+                                origin: reference.lane(i),
+                                direction: wi.lane(i),
+                                t_max: f32::INFINITY,
+                            };
+                            ray_meets_triangle(&ray, &triangles[picked[i].0])
+                        }
+                    })
+                };
+                let pdf = solid_angle_pdf(1.0 / area, to.length(), normal, wi);
+                (p, normal, pdf, wi, met)
             }
             Surface::Sphere(s) => {
-                let to_center = s.center - reference.position;
+                let center = V3::splat(s.center);
+                let to_center = center - reference;
                 let d2 = to_center.length_squared();
-                if d2 <= s.radius * s.radius {
-                    // Inside the sphere: uniform area sampling.
-                    let z = 1.0 - 2.0 * u.x;
-                    let r = (1.0 - z * z).max(0.0).sqrt();
-                    let phi = TAU * u.y;
-                    let n = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-                    let p = s.center + s.radius * n;
-                    let to = p - reference.position;
-                    let distance = to.length();
-                    let area = 4.0 * PI * s.radius * s.radius;
+                let inside = d2.le(L::splat(s.radius * s.radius));
+                let (sin_phi, cos_phi) = (L::splat(TAU) * u1).sin_cos();
+                // Inside the sphere: uniform area sampling.
+                let inside_sample = || {
+                    let z = one - L::splat(2.0) * u0;
+                    let r = (one - z * z).max(zero).sqrt();
+                    let n = V3::new(r * cos_phi, r * sin_phi, z);
+                    let p = center + n * L::splat(s.radius);
+                    let to = p - reference;
                     let wi = to.normalize_or_zero();
-                    (p, n, Self::solid_angle_pdf(1.0 / area, distance, n, wi), wi)
-                } else {
+                    let area = 4.0 * PI * s.radius * s.radius;
+                    (p, n, solid_angle_pdf(1.0 / area, to.length(), n, wi), wi)
+                };
+                // Outside: uniform in the cone the sphere subtends.
+                let cone_sample = || {
                     let (sin2_max, one_minus_cos_max) = cone(s.radius, d2);
-                    // Uniform in the cone: 1 − cos θ uniform in [0, 1 − cos θmax].
-                    let one_minus_cos = u.x * one_minus_cos_max;
-                    let sin2 = one_minus_cos * (2.0 - one_minus_cos);
-                    let cos = 1.0 - one_minus_cos;
+                    // 1 − cos θ uniform in [0, 1 − cos θmax].
+                    let one_minus_cos = u0 * one_minus_cos_max;
+                    let sin2 = one_minus_cos * (L::splat(2.0) - one_minus_cos);
+                    let cos = one - one_minus_cos;
                     // Angle α at the centre between the axis and the point the direction meets.
                     let sin_max = sin2_max.sqrt();
-                    let cos_alpha = sin2 / sin_max + cos * (1.0 - sin2 / sin2_max).max(0.0).sqrt();
-                    let sin_alpha = (1.0 - cos_alpha * cos_alpha).max(0.0).sqrt();
-                    let phi = TAU * u.y;
-                    let frame = Frame::from_normal(-to_center / d2.sqrt());
-                    let n = frame.to_world(Vec3::new(
-                        sin_alpha * phi.cos(),
-                        sin_alpha * phi.sin(),
+                    let cos_alpha = sin2 / sin_max + cos * (one - sin2 / sin2_max).max(zero).sqrt();
+                    let sin_alpha = (one - cos_alpha * cos_alpha).max(zero).sqrt();
+                    let frame = FrameLanes::from_normal(-to_center / d2.sqrt());
+                    let n = frame.to_world(V3::new(
+                        sin_alpha * cos_phi,
+                        sin_alpha * sin_phi,
                         cos_alpha,
                     ));
-                    let p = s.center + s.radius * n;
-                    let wi = (p - reference.position).normalize_or_zero();
-                    (p, n, 1.0 / (TAU * one_minus_cos_max), wi)
-                }
+                    let p = center + n * L::splat(s.radius);
+                    let wi = (p - reference).normalize_or_zero();
+                    let pdf = one / (L::splat(TAU) * one_minus_cos_max);
+                    (p, n, pdf, wi)
+                };
+                let (p, n, pdf, wi) = if !inside.any() {
+                    cone_sample()
+                } else if inside.all() {
+                    inside_sample()
+                } else {
+                    let (a, b) = (inside_sample(), cone_sample());
+                    (
+                        V3::select(inside, a.0, b.0),
+                        V3::select(inside, a.1, b.1),
+                        L::select(inside, a.2, b.2),
+                        V3::select(inside, a.3, b.3),
+                    )
+                };
+                (p, n, pdf, wi, L::Mask::from_fn(|_| true))
             }
         };
-        if !(pdf > 0.0 && pdf.is_finite()) || wi == Vec3::ZERO || !self.emits_toward(normal, wi) {
-            return None;
-        }
-        Some(EmitterSample {
+        let valid =
+            met & pdf.gt(zero) & pdf.is_finite() & !wi.is_zero() & self.emits_toward(normal, wi);
+        EmitterSampleLanes {
+            valid,
             wi,
-            position: Some(position),
+            position,
             pdf,
-            radiance: self.radiance,
-        })
+        }
+    }
+}
+
+impl Emitter for AreaEmitter {
+    fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
+        self.sample_lanes::<f32>(V3::splat(reference.position), (u.x, u.y))
+            .lane(0, self.radiance)
+    }
+
+    fn sample_direction_batch(
+        &self,
+        reference: &ReferencePoint,
+        u: &[Vec2],
+        out: &mut [Option<EmitterSample>],
+    ) {
+        sample_direction_by_fours(reference, u, out, self.radiance, |reference, u| {
+            self.sample_lanes::<Vec4>(reference, u)
+        });
     }
 
     fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32 {
         match (&self.surface, hit) {
-            (Surface::Triangles { area, .. }, Some(hit)) => {
-                Self::solid_angle_pdf(1.0 / area, hit.distance, hit.normal, wi)
-            }
+            (Surface::Triangles { area, .. }, Some(hit)) => solid_angle_pdf::<f32>(
+                1.0 / area,
+                hit.distance,
+                V3::splat(hit.normal),
+                V3::splat(wi),
+            ),
             (Surface::Sphere(s), hit) => {
                 let to_center = s.center - reference.position;
                 let d2 = to_center.length_squared();
@@ -216,14 +283,19 @@ impl Emitter for AreaEmitter {
                     let sin2 = wi.cross(to_center).length_squared() / d2;
                     let in_cone = wi.dot(to_center) > 0.0 && sin2 <= sin_max * sin_max;
                     return if in_cone {
-                        1.0 / (TAU * cone(s.radius, d2).1)
+                        1.0 / (TAU * cone::<f32>(s.radius, d2).1)
                     } else {
                         0.0
                     };
                 }
                 let area = 4.0 * PI * s.radius * s.radius;
                 hit.map_or(0.0, |h| {
-                    Self::solid_angle_pdf(1.0 / area, h.distance, h.normal, wi)
+                    solid_angle_pdf::<f32>(
+                        1.0 / area,
+                        h.distance,
+                        V3::splat(h.normal),
+                        V3::splat(wi),
+                    )
                 })
             }
             (Surface::Triangles { .. }, None) => 0.0,
@@ -232,7 +304,9 @@ impl Emitter for AreaEmitter {
 
     fn eval(&self, wi: Vec3, hit: Option<&EmitterHit>) -> Rgb {
         match hit {
-            Some(h) if self.emits_toward(h.normal, wi) => self.radiance,
+            Some(h) if self.emits_toward::<f32>(V3::splat(h.normal), V3::splat(wi)) => {
+                self.radiance
+            }
             _ => Rgb::ZERO,
         }
     }
@@ -316,6 +390,8 @@ inventory::submit! {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lumis_core::math::Frame;
+    use lumis_core::math::warp::square_to_triangle_barycentrics;
     use lumis_core::sampler::Sampler;
 
     /// Wherever `surely_meets` skips the watertight test, the test would have found the
@@ -411,7 +487,13 @@ mod tests {
                 let to = point - origin;
                 let wi = to.normalize_or_zero();
                 let cos = normal.dot(wi).abs();
-                let sure = surely_meets([b0, b1, b2], to, origin, cos, size);
+                let sure = surely_meets::<f32>(
+                    [b0, b1, b2],
+                    V3::splat(to),
+                    V3::splat(origin),
+                    cos,
+                    (size.longest_edge, size.inv_min_height),
+                );
                 // Seen at 0.1 to 100 times its size, neither a sliver nor far from the origin.
                 if !near_edge
                     && !grazing

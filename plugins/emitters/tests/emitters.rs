@@ -66,6 +66,12 @@ impl ShapeLight {
 
 /// A 2 x 2 square light in the plane y = 0 (two-sided, so every sample counts), seen from `from`.
 fn square_light() -> ShapeLight {
+    light_on_square("\"radiance\": 2, \"two_sided\": true")
+}
+
+/// An `area` light with `params` on the 2 x 2 square in the plane y = 0, two triangles sharing a
+/// diagonal (the rectangle, which faces +z, turned by 90° about x).
+fn light_on_square(params: &str) -> ShapeLight {
     let m = lumis_core::scene::shapes::transform_matrix(
         &lumis_core::scene::description::TransformDescription {
             rotate: vec![lumis_core::scene::description::RotationDescription {
@@ -78,7 +84,7 @@ fn square_light() -> ShapeLight {
     .unwrap();
     ShapeLight::new(
         ShapeGeometry::Mesh(shapes::rectangle().transformed(&m)),
-        "\"radiance\": 2, \"two_sided\": true",
+        params,
     )
 }
 
@@ -485,4 +491,262 @@ fn invalid_and_black_environment_pixels_are_never_sampled() {
     let black = EnvironmentMap::new(w, h, vec![Rgb::ZERO; w * h], 1.0, 0.0);
     assert!(black.sample_direction(&r, Vec2::splat(0.3)).is_none());
     assert_eq!(black.pdf_direction(&r, Vec3::Y, None), 0.0);
+}
+
+/// u values at and next to the places where a warp or the choice of a triangle changes: 0, the
+/// quarters, fifths and the half (where the square's two triangles meet), and the top, each with
+/// its f32 neighbours. On the square, u.x at 0, 1/2 and just below 1/2 and 1, or u.y at 0 or
+/// just below 1, puts the point on a triangle's edge.
+fn edge_values() -> Vec<f32> {
+    let mut v = vec![
+        0.0,
+        f32::from_bits(1),
+        1e-7,
+        0.999_999_9,
+        1.0 - f32::EPSILON / 2.0,
+    ];
+    for base in [0.2f32, 0.25, 0.4, 0.5, 0.6, 0.75, 0.8] {
+        v.extend([
+            f32::from_bits(base.to_bits() - 1),
+            base,
+            f32::from_bits(base.to_bits() + 1),
+        ]);
+    }
+    v
+}
+
+/// An `area` light with `params` on five triangles of different sizes (areas 2 to 2.5e-4, one
+/// a sliver), orientations and planes.
+fn light_on_triangles(params: &str) -> ShapeLight {
+    let triangles = [
+        [
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ],
+        [
+            Vec3::ZERO,
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-0.3, 0.0, 0.0),
+        ],
+        [
+            Vec3::new(1.0, 1.0, 0.2),
+            Vec3::new(1.5, 1.0, 0.2),
+            Vec3::new(1.25, 1.001, 0.2),
+        ],
+        [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.5),
+            Vec3::new(0.0, 1.0, 1.2),
+        ],
+        [
+            Vec3::new(-1.0, 2.0, -1.0),
+            Vec3::new(1.0, 2.0, -1.0),
+            Vec3::new(0.0, 2.0, 1.0),
+        ],
+    ];
+    let mesh = shapes::Mesh {
+        positions: triangles.iter().flatten().copied().collect(),
+        normals: None,
+        indices: (0..triangles.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect(),
+    };
+    ShapeLight::new(ShapeGeometry::Mesh(mesh), params)
+}
+
+/// `sample_direction_batch` gives what `sample_direction` gives, bit for bit, for every
+/// emitter: area lights on triangles (the square, one- and two-sided, and five triangles of
+/// different areas, seen from in front, from behind, from within their plane and from on them)
+/// and on spheres (one- and two-sided, from far, mid, near, just outside, on the surface and
+/// inside, where the sampling switches from cone to area), whose batches run four lanes at a
+/// time, and the environment map and delta lights, which use the trait's default. Batches of
+/// every length a group of four can end with, of u from a seeded stream with, in some lanes,
+/// values on and next to the edges of the warps (points on a triangle's edge, the cone's rim,
+/// the diagonal u.x = u.y of the triangle warp). Each output starts as a NaN sentinel, so an
+/// element the batch leaves unwritten fails.
+#[test]
+fn batches_give_what_single_calls_give_bit_for_bit() {
+    const LENGTHS: [usize; 7] = [1, 2, 3, 4, 5, 7, 64];
+    const ROUNDS: usize = 12;
+    let bits = |s: &Option<lumis_core::emitter::EmitterSample>| {
+        s.map(|s| {
+            (
+                s.wi.to_array().map(f32::to_bits),
+                s.position.map(|p| p.to_array().map(f32::to_bits)),
+                s.pdf.to_bits(),
+                s.radiance.to_array().map(f32::to_bits),
+            )
+        })
+    };
+    let sentinel = lumis_core::emitter::EmitterSample {
+        wi: Vec3::NAN,
+        position: Some(Vec3::NAN),
+        pdf: f32::NAN,
+        radiance: Rgb::NAN,
+    };
+    let edges = edge_values();
+    let around = |center: Vec3, radius: f32, distances: &[f32]| -> Vec<Vec3> {
+        distances
+            .iter()
+            .map(|d| center + Vec3::new(0.6, 0.0, 0.8) * (radius * d))
+            .collect()
+    };
+    // Distances in radii: far (a cone too thin for 1 − cos θ to be computed directly), mid,
+    // near, just outside (the cone nearly a hemisphere), on the surface, inside, at the centre.
+    let sphere_distances = [1e5, 1000.0, 3.0, 1.05, 1.0 + 1e-6, 1.0, 0.5, 0.0];
+    // In front (y < 0: the square faces −y), behind, within its plane, on it.
+    let square_from = vec![
+        Vec3::new(0.3, -0.4, -0.2),
+        Vec3::new(0.3, 0.4, -0.2),
+        Vec3::new(3.0, 40.0, 5.0),
+        Vec3::new(2.5, 0.01, 0.3),
+        Vec3::new(2.5, 0.0, 0.3),
+        Vec3::new(-7.0, -3.0, 11.0),
+        Vec3::new(0.9, -0.05, 0.99),
+        Vec3::new(0.2, 0.0, 0.1),
+    ];
+    let triangles_from = vec![
+        Vec3::new(0.3, 0.4, -0.2),
+        Vec3::new(0.5, 0.5, 3.0),
+        Vec3::new(10.0, -20.0, 5.0),
+        Vec3::new(0.5, 0.3, 0.0),
+        Vec3::new(0.2, 5.0, 0.3),
+    ];
+    let offset = Vec3::new(1.0, -2.0, 0.5);
+    let cases: Vec<(&str, Arc<dyn Emitter>, Vec<Vec3>)> = vec![
+        (
+            "two-sided square",
+            square_light().light,
+            square_from.clone(),
+        ),
+        (
+            "one-sided square",
+            light_on_square("\"radiance\": (1, 2, 3)").light,
+            square_from,
+        ),
+        (
+            "one-sided triangles",
+            light_on_triangles("\"radiance\": 2").light,
+            triangles_from.clone(),
+        ),
+        (
+            "two-sided triangles",
+            light_on_triangles("\"radiance\": 2, \"two_sided\": true").light,
+            triangles_from,
+        ),
+        (
+            "one-sided sphere",
+            sphere_light(0.5, false).light,
+            around(Vec3::ZERO, 0.5, &sphere_distances),
+        ),
+        (
+            "two-sided sphere",
+            sphere_light(0.5, true).light,
+            around(Vec3::ZERO, 0.5, &sphere_distances),
+        ),
+        (
+            "offset two-sided sphere",
+            ShapeLight::new(
+                ShapeGeometry::Sphere(Sphere {
+                    center: offset,
+                    radius: 0.3,
+                }),
+                "\"radiance\": (1, 2, 3), \"two_sided\": true",
+            )
+            .light,
+            around(offset, 0.3, &sphere_distances),
+        ),
+        (
+            "envmap",
+            emitter("envmap", "\"file\": \"scenes/envmaps/studio.exr\"", None),
+            vec![Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0)],
+        ),
+        (
+            "turned envmap",
+            emitter(
+                "envmap",
+                "\"file\": \"scenes/envmaps/studio.exr\", \"rotation\": 30",
+                None,
+            ),
+            vec![Vec3::new(-4.0, 0.5, 2.0)],
+        ),
+        (
+            "point",
+            emitter(
+                "point",
+                "\"position\": (1, 3, 0), \"intensity\": (4, 8, 12)",
+                None,
+            ),
+            vec![Vec3::new(1.0, 0.0, 4.0), Vec3::new(1.0, 3.0, 0.0)],
+        ),
+        (
+            "directional",
+            emitter(
+                "directional",
+                "\"direction\": (0, -1, -1), \"irradiance\": 5",
+                None,
+            ),
+            vec![Vec3::new(7.0, -2.0, 1.0)],
+        ),
+    ];
+    let mut s = test_sampler(9);
+    let mut mixed_area = 0;
+    for (name, light, from) in &cases {
+        let (mut some, mut none, mut mixed) = (0usize, 0usize, 0usize);
+        for &from in from {
+            let r = ReferencePoint { position: from };
+            for round in 0..ROUNDS {
+                for len in LENGTHS {
+                    let u: Vec<Vec2> = (0..len)
+                        .map(|k| {
+                            let mut u = s.next_2d();
+                            let edge = edges[((s.next_1d() * edges.len() as f32) as usize)
+                                .min(edges.len() - 1)];
+                            match (k * 5 + round) % 8 {
+                                4 => u.x = edge,
+                                5 => u.y = edge,
+                                6 => u = Vec2::new(edge, edges[(k + round) % edges.len()]),
+                                7 => u.y = u.x,
+                                _ => {}
+                            }
+                            u
+                        })
+                        .collect();
+                    let mut out = vec![Some(sentinel); len];
+                    light.sample_direction_batch(&r, &u, &mut out);
+                    for (k, (&uk, batch)) in u.iter().zip(&out).enumerate() {
+                        let single = light.sample_direction(&r, uk);
+                        assert_eq!(
+                            bits(batch),
+                            bits(&single),
+                            "{name} from {from:?}: batch of {len}, element {k}, u {uk:?}: \
+                             batch {batch:?}, single {single:?}"
+                        );
+                        some += single.is_some() as usize;
+                        none += single.is_none() as usize;
+                    }
+                    let drawn = out.iter().filter(|s| s.is_some()).count();
+                    mixed += (drawn > 0 && drawn < len) as usize;
+                }
+            }
+        }
+        // Area lights (their own batch code) have five references or more, the others
+        // (the trait's default) one or two.
+        let area = !(name.contains("envmap") || *name == "point" || *name == "directional");
+        let least = if area { 2_500 } else { 900 };
+        assert!(some >= least, "{name}: only {some} samples compared");
+        if name.starts_with("one-sided") || *name == "point" {
+            assert!(none > 0, "{name}: no failed sample compared");
+        }
+        if area {
+            mixed_area += mixed;
+        }
+    }
+    // Batches of area lights in which some lanes give a sample and others none (points on
+    // edges, faces seen edge-on or from behind): where a lane's mask matters.
+    assert!(
+        mixed_area >= 100,
+        "only {mixed_area} batches of area lights mixed samples and failed ones"
+    );
 }

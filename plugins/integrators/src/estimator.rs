@@ -12,13 +12,14 @@
 //! The records of one technique are drawn together into a buffer the caller reuses (no
 //! allocation per sample), so that a method weighs and observes them as plain slices.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use lumis_core::accel::{FirstHit, Intersection, Ray};
 use lumis_core::bsdf::{Bsdf, BsdfSample};
 use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
+use std::cell::RefCell;
 
 /// A surface point seen by the camera, with its shading frame turned toward the viewer
 /// (surfaces are two-sided).
@@ -297,12 +298,36 @@ impl DeferredLookups {
 /// drawn or not: what follows a phase's BSDF samples is known in advance.
 pub const BSDF_SAMPLE_NUMBERS: u32 = 3;
 
+/// Space for the batch calls of one phase ([`Bsdf::sample_batch`],
+/// [`Emitter::sample_direction_batch`], [`Bsdf::eval_pdf_batch`]), reused by each thread: no
+/// allocation per sample.
+///
+/// [`Bsdf::sample_batch`]: lumis_core::bsdf::Bsdf::sample_batch
+/// [`Bsdf::eval_pdf_batch`]: lumis_core::bsdf::Bsdf::eval_pdf_batch
+/// [`Emitter::sample_direction_batch`]: lumis_core::emitter::Emitter::sample_direction_batch
+#[derive(Default)]
+struct BatchScratch {
+    bsdf_numbers: Vec<(f32, Vec2)>,
+    bsdf_samples: Vec<Option<BsdfSample>>,
+    light_numbers: Vec<Vec2>,
+    light_samples: Vec<Option<EmitterSample>>,
+    directions: Vec<Vec3>,
+    values: Vec<(Rgb, f32)>,
+}
+
+thread_local! {
+    static BATCH_SCRATCH: RefCell<BatchScratch> = RefCell::new(BatchScratch::default());
+}
+
 /// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
 /// with the densities `densities` asks for. Each sample takes [`BSDF_SAMPLE_NUMBERS`] numbers
 /// from `sampler` (lobe choice, then direction), drawn or not. Given `deferred`, the records of
 /// samples that reach the environment are left to it, and its [`DeferredLookups::look_up`] must
 /// fill them before they are read (after the phase's light samples); without, they are filled
-/// at once.
+/// at once. Several samples are drawn with one [`Bsdf::sample_batch`] call, which gives what
+/// one call each would.
+///
+/// [`Bsdf::sample_batch`]: lumis_core::bsdf::Bsdf::sample_batch
 #[allow(clippy::too_many_arguments)]
 pub fn draw_bsdf_samples(
     scene: &Scene,
@@ -320,11 +345,10 @@ pub fn draw_bsdf_samples(
     };
     let both = densities == Densities::Both;
     let light_shape = scene.emitter_shape[light];
-    for _ in 0..count {
-        let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
-        let Some(s) = sp.bsdf.sample(sp.wo, u_lobe, u) else {
+    let mut record = |s: Option<BsdfSample>| {
+        let Some(s) = s else {
             records.push(SampleRecord::default());
-            continue;
+            return;
         };
         let black = SampleRecord {
             p_bsdf: s.pdf,
@@ -347,7 +371,7 @@ pub fn draw_bsdf_samples(
         };
         if !sp.reflects_toward(wi) {
             records.push(black());
-            continue;
+            return;
         }
         match reaches_light(scene, light, light_shape, &ray) {
             Reached::Nothing => records.push(black()),
@@ -369,11 +393,34 @@ pub fn draw_bsdf_samples(
                 }
             },
         }
+    };
+    if count == 1 {
+        let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
+        record(sp.bsdf.sample(sp.wo, u_lobe, u));
+        return;
     }
+    BATCH_SCRATCH.with_borrow_mut(|scratch| {
+        let numbers = &mut scratch.bsdf_numbers;
+        numbers.clear();
+        numbers.extend((0..count).map(|_| (sampler.next_1d(), sampler.next_2d())));
+        let samples = &mut scratch.bsdf_samples;
+        samples.clear();
+        samples.resize(numbers.len(), None);
+        sp.bsdf.sample_batch(sp.wo, numbers, samples);
+        for &s in samples.iter() {
+            record(s);
+        }
+    });
 }
 
 /// Draws `count` samples of non-delta light `light` for `sp` and appends their records, with
-/// the densities `densities` asks for. Each sample takes two numbers from `sampler`.
+/// the densities `densities` asks for. Each sample takes two numbers from `sampler`. Several
+/// samples are drawn and their BSDF values computed with one batch call each
+/// ([`Emitter::sample_direction_batch`], [`Bsdf::eval_pdf_batch`]), which give what one call
+/// each would.
+///
+/// [`Emitter::sample_direction_batch`]: lumis_core::emitter::Emitter::sample_direction_batch
+/// [`Bsdf::eval_pdf_batch`]: lumis_core::bsdf::Bsdf::eval_pdf_batch
 pub fn draw_light_samples(
     scene: &Scene,
     sp: &ShadingPoint,
@@ -387,36 +434,77 @@ pub fn draw_light_samples(
     let reference = ReferencePoint {
         position: sp.hit.position,
     };
-    for _ in 0..count {
+    if count == 1 {
         let Some(ls) = emitter.sample_direction(&reference, sampler.next_2d()) else {
             records.push(SampleRecord::default());
-            continue;
+            return;
         };
         let wi = sp.frame.to_local(ls.wi);
-        // Value and density in one call: an unoccluded sample needs both.
-        let evaluated = sp
-            .reflects_toward_sample(&ls)
-            .then(|| sp.bsdf.eval_pdf(sp.wo, wi));
-        let (f, p_bsdf) = evaluated.unwrap_or((Rgb::ZERO, 0.0));
-        if f == Rgb::ZERO || !sp.sees(scene, &ls) {
-            let p_bsdf = match (densities, evaluated) {
-                (Densities::Lit, _) => 0.0,
-                (Densities::Both, Some(_)) => p_bsdf,
-                (Densities::Both, None) => sp.bsdf.pdf(sp.wo, wi),
-            };
-            records.push(SampleRecord {
-                p_light: ls.pdf,
-                p_bsdf,
-                ..SampleRecord::default()
+        records.push(light_record(scene, sp, &ls, densities, || {
+            sp.bsdf.eval_pdf(sp.wo, wi)
+        }));
+        return;
+    }
+    BATCH_SCRATCH.with_borrow_mut(|scratch| {
+        let numbers = &mut scratch.light_numbers;
+        numbers.clear();
+        numbers.extend((0..count).map(|_| sampler.next_2d()));
+        let samples = &mut scratch.light_samples;
+        samples.clear();
+        samples.resize(numbers.len(), None);
+        emitter.sample_direction_batch(&reference, numbers, samples);
+        // The BSDF toward every sample at once; a sample it cannot reflect toward has its value
+        // ignored, as `light_record` would not have asked for it.
+        let directions = &mut scratch.directions;
+        directions.clear();
+        directions.extend(
+            samples
+                .iter()
+                .map(|ls| ls.map_or(Vec3::Z, |ls| sp.frame.to_local(ls.wi))),
+        );
+        let values = &mut scratch.values;
+        values.clear();
+        values.resize(directions.len(), (Rgb::ZERO, 0.0));
+        sp.bsdf.eval_pdf_batch(sp.wo, directions, values);
+        for (ls, &value) in samples.iter().zip(values.iter()) {
+            records.push(match ls {
+                Some(ls) => light_record(scene, sp, ls, densities, || value),
+                None => SampleRecord::default(),
             });
-            continue;
         }
-        records.push(SampleRecord {
-            f: f * ls.radiance,
-            p_bsdf,
+    });
+}
+
+/// The record of light sample `ls` at `sp`, given the BSDF's `eval_pdf` toward it
+/// (`eval_pdf()`, asked for only where the surface can reflect toward the sample or both
+/// densities are wanted).
+fn light_record(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    ls: &EmitterSample,
+    densities: Densities,
+    eval_pdf: impl FnOnce() -> (Rgb, f32),
+) -> SampleRecord {
+    let both = densities == Densities::Both;
+    let reflects = sp.reflects_toward_sample(ls);
+    // Value and density in one call: an unoccluded sample needs both.
+    let (f, p_bsdf) = if reflects || both {
+        eval_pdf()
+    } else {
+        (Rgb::ZERO, 0.0)
+    };
+    if !reflects || f == Rgb::ZERO || !sp.sees(scene, ls) {
+        return SampleRecord {
             p_light: ls.pdf,
-            delta: false,
-        });
+            p_bsdf: if both { p_bsdf } else { 0.0 },
+            ..SampleRecord::default()
+        };
+    }
+    SampleRecord {
+        f: f * ls.radiance,
+        p_bsdf,
+        p_light: ls.pdf,
+        delta: false,
     }
 }
 
