@@ -14,6 +14,7 @@ use lumis::integrators::balance::Balance;
 use lumis::integrators::estimator::ShadingPoint;
 use lumis::integrators::phase::{Observer, PhaseRole};
 use lumis::integrators::weighting::PerSample;
+use lumis::math::Rgb;
 use lumis::sampler::Sampler;
 use lumis::scene::shapes::{Mesh, ShapeGeometry};
 use std::hint::black_box;
@@ -24,6 +25,8 @@ use std::time::Duration;
 /// Rays (or samples) per measured batch: large enough that loop overhead vanishes, small enough
 /// that a batch stays in cache.
 const BATCH: usize = 4096;
+/// Samples drawn at one shading point in the batch benchmarks (N = 64, half per technique).
+const POINT_SAMPLES: usize = 32;
 
 fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
@@ -280,6 +283,104 @@ fn bsdfs(c: &mut Criterion) {
                 }
             })
         });
+        // The samples of one shading point, POINT_SAMPLES at a time with one ωo: one call each,
+        // then one batch call (which gives the same results, bit for bit).
+        let at_points = || {
+            inputs
+                .chunks(POINT_SAMPLES)
+                .map(|chunk| (chunk[0].0, chunk))
+        };
+        group.bench_function(format!("{name}_sample_at_points"), |b| {
+            b.iter(|| {
+                for (wo, chunk) in at_points() {
+                    for &(_, _, u_lobe, u) in chunk {
+                        black_box(model.sample(wo, u_lobe, u));
+                    }
+                }
+            })
+        });
+        let numbers: Vec<(f32, Vec2)> = inputs.iter().map(|&(_, _, ul, u)| (ul, u)).collect();
+        let directions: Vec<Vec3> = inputs.iter().map(|&(_, wi, _, _)| wi).collect();
+        let mut samples = vec![None; POINT_SAMPLES];
+        group.bench_function(format!("{name}_sample_batch"), |b| {
+            b.iter(|| {
+                for (wo, chunk) in at_points().zip(numbers.chunks(POINT_SAMPLES)) {
+                    model.sample_batch(wo.0, chunk, &mut samples[..chunk.len()]);
+                    black_box(&samples);
+                }
+            })
+        });
+        group.bench_function(format!("{name}_eval_pdf_at_points"), |b| {
+            b.iter(|| {
+                for (wo, chunk) in at_points() {
+                    for &(_, wi, _, _) in chunk {
+                        black_box(model.eval_pdf(wo, wi));
+                    }
+                }
+            })
+        });
+        let mut values = vec![(Rgb::ZERO, 0.0); POINT_SAMPLES];
+        group.bench_function(format!("{name}_eval_pdf_batch"), |b| {
+            b.iter(|| {
+                for (wo, chunk) in at_points().zip(directions.chunks(POINT_SAMPLES)) {
+                    model.eval_pdf_batch(wo.0, chunk, &mut values[..chunk.len()]);
+                    black_box(&values);
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+/// Area lights sampled from points of the bundled scenes: the Veach scene's sphere lights
+/// (cone sampling) and the Cornell box's quad (two triangles), one call per sample against one
+/// batch call per point.
+fn area_lights(c: &mut Criterion) {
+    let mut group = c.benchmark_group("area_light");
+    group.throughput(Throughput::Elements(BATCH as u64));
+    for (name, scene_file, light) in [
+        ("sphere", "scenes/veach.ron", 1),
+        ("quad", "scenes/cornell.ron", 0),
+    ] {
+        let loaded =
+            lumis::scene::load_scene(&repo(scene_file), &[]).unwrap_or_else(|e| panic!("{e}"));
+        let scene = &loaded.scene;
+        let emitter = scene.emitters[light].as_ref();
+        // Points the camera sees, POINT_SAMPLES samples at each.
+        let points: Vec<ReferencePoint> = (0..BATCH / POINT_SAMPLES)
+            .filter_map(|i| {
+                let pixel = glam::UVec2::new(
+                    (i as u32 * 37) % scene.width,
+                    (i as u32 * 53) % scene.height,
+                );
+                let hit = scene.intersect(&CameraSample::new(scene, pixel, 0).ray)?;
+                Some(ReferencePoint {
+                    position: hit.position,
+                })
+            })
+            .collect();
+        let mut sampler = Sampler::new(9, 0, 0);
+        let us: Vec<Vec2> = (0..points.len() * POINT_SAMPLES)
+            .map(|_| sampler.next_2d())
+            .collect();
+        group.bench_function(format!("{name}_sample_direction"), |b| {
+            b.iter(|| {
+                for (point, us) in points.iter().zip(us.chunks(POINT_SAMPLES)) {
+                    for &u in us {
+                        black_box(emitter.sample_direction(point, u));
+                    }
+                }
+            })
+        });
+        let mut samples = vec![None; POINT_SAMPLES];
+        group.bench_function(format!("{name}_sample_direction_batch"), |b| {
+            b.iter(|| {
+                for (point, us) in points.iter().zip(us.chunks(POINT_SAMPLES)) {
+                    emitter.sample_direction_batch(point, us, &mut samples);
+                    black_box(&samples);
+                }
+            })
+        });
     }
     group.finish();
 }
@@ -437,6 +538,6 @@ criterion_group!(
     config = Criterion::default()
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(2));
-    targets = bvh_build, ray_queries, bsdfs, envmap, alpha_estimator
+    targets = bvh_build, ray_queries, bsdfs, area_lights, envmap, alpha_estimator
 );
 criterion_main!(benches);

@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// Version of the plugin interface (the traits, `BsdfPlugin`, `Params`); bumped on any change.
-pub const API_VERSION: u32 = 1;
+/// 2: `Bsdf` gained `eval_pdf_batch` and `sample_batch` (a new vtable layout).
+pub const API_VERSION: u32 = 2;
 
 /// The rustc that built this copy of lumis-core.
 pub const RUSTC_VERSION: &str = env!("LUMIS_RUSTC_VERSION");

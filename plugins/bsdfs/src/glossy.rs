@@ -48,6 +48,33 @@ pub enum Masking {
     Separable,
 }
 
+/// A pair of directions (ωo, ωi) with what their value and density share.
+#[derive(Clone, Copy)]
+struct Pair<L> {
+    wo: V3<L>,
+    wi: V3<L>,
+    h: V3<L>,
+    /// D(h).
+    d: L,
+    /// Λ(ωo).
+    lambda_o: L,
+}
+
+impl<L: Lanes> Pair<L> {
+    /// Whether h is above the surface (the specular lobe is zero elsewhere).
+    #[inline(always)]
+    fn facing(&self) -> L::Mask {
+        self.h.z.gt(L::splat(0.0))
+    }
+
+    /// Whether ωo or ωi is below the surface (the BSDF is zero there).
+    #[inline(always)]
+    fn below(&self) -> L::Mask {
+        let zero = L::splat(0.0);
+        self.wo.z.le(zero) | self.wi.z.le(zero)
+    }
+}
+
 /// Schlick's approximation of the Fresnel reflectance, per channel.
 #[inline(always)]
 fn schlick<L: Lanes>(f0: Rgb, cos: L) -> V3<L> {
@@ -148,27 +175,51 @@ impl Glossy {
         V3::splat(albedo) * (L::splat(28.0 / (23.0 * PI)) * fo * fi) * wi.z
     }
 
-    /// `eval` and `pdf` of the mixture; zero where ωo or ωi is below the surface.
+    /// What the value and the density of a pair of directions share: the half vector h, D(h)
+    /// and Λ(ωo).
+    #[inline(always)]
+    fn pair<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> Pair<L> {
+        let h = (wo + wi).normalize_or_zero();
+        Pair {
+            wo,
+            wi,
+            h,
+            d: self.d(h),
+            lambda_o: self.lambda(wo),
+        }
+    }
+
+    /// The mixture's value; zero where ωo or ωi is below the surface.
+    #[inline(always)]
+    fn value<L: Lanes>(&self, pair: &Pair<L>) -> V3<L> {
+        let Pair {
+            wo,
+            wi,
+            h,
+            d,
+            lambda_o,
+        } = *pair;
+        let specular = self.specular_value(wo, wi, h, d, lambda_o);
+        let value = self.diffuse_value(wo, wi) + V3::select(pair.facing(), specular, V3::zero());
+        V3::select(pair.below(), V3::zero(), value)
+    }
+
+    /// The mixture's density; zero where ωo or ωi is below the surface.
+    #[inline(always)]
+    fn density<L: Lanes>(&self, pair: &Pair<L>) -> L {
+        let zero = L::splat(0.0);
+        let specular_pdf = self.specular_pdf(pair.wo, pair.d, pair.lambda_o);
+        let specular_pdf = L::select(pair.facing(), specular_pdf, zero);
+        let p = self.specular_probability(pair.wo);
+        let pdf = p * specular_pdf + (L::splat(1.0) - p) * cosine_hemisphere_pdf_lanes(pair.wi.z);
+        L::select(pair.below(), zero, pdf)
+    }
+
+    /// `eval` and `pdf` of the mixture.
     #[inline(always)]
     fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
-        let zero = L::splat(0.0);
-        let h = (wo + wi).normalize_or_zero();
-        let (d, lambda_o) = (self.d(h), self.lambda(wo));
-        let facing = h.z.gt(zero);
-        let value = self.diffuse_value(wo, wi)
-            + V3::select(
-                facing,
-                self.specular_value(wo, wi, h, d, lambda_o),
-                V3::zero(),
-            );
-        let specular_pdf = L::select(facing, self.specular_pdf(wo, d, lambda_o), zero);
-        let p = self.specular_probability(wo);
-        let pdf = p * specular_pdf + (L::splat(1.0) - p) * cosine_hemisphere_pdf_lanes(wi.z);
-        let below = wo.z.le(zero) | wi.z.le(zero);
-        (
-            V3::select(below, V3::zero(), value),
-            L::select(below, zero, pdf),
-        )
+        let pair = self.pair(wo, wi);
+        (self.value(&pair), self.density(&pair))
     }
 
     /// Heitz 2018: a visible normal for ωo (above the surface).
@@ -218,11 +269,12 @@ impl Glossy {
 
 impl Bsdf for Glossy {
     fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        self.eval_pdf(wo, wi).0
+        self.value(&self.pair::<f32>(V3::splat(wo), V3::splat(wi)))
+            .lane(0)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(wo, wi).1
+        self.density(&self.pair::<f32>(V3::splat(wo), V3::splat(wi)))
     }
 
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
