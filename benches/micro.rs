@@ -302,10 +302,13 @@ fn bsdfs(c: &mut Criterion) {
         let numbers: Vec<(f32, Vec2)> = inputs.iter().map(|&(_, _, ul, u)| (ul, u)).collect();
         let directions: Vec<Vec3> = inputs.iter().map(|&(_, wi, _, _)| wi).collect();
         let mut samples = vec![None; POINT_SAMPLES];
+        let mut wos = vec![Vec3::Z; POINT_SAMPLES];
         group.bench_function(format!("{name}_sample_batch"), |b| {
             b.iter(|| {
                 for (wo, chunk) in at_points().zip(numbers.chunks(POINT_SAMPLES)) {
-                    model.sample_batch(wo.0, chunk, &mut samples[..chunk.len()]);
+                    wos.fill(wo.0);
+                    let n = chunk.len();
+                    model.sample_batch(&wos[..n], chunk, &mut samples[..n]);
                     black_box(&samples);
                 }
             })
@@ -323,7 +326,9 @@ fn bsdfs(c: &mut Criterion) {
         group.bench_function(format!("{name}_eval_pdf_batch"), |b| {
             b.iter(|| {
                 for (wo, chunk) in at_points().zip(directions.chunks(POINT_SAMPLES)) {
-                    model.eval_pdf_batch(wo.0, chunk, &mut values[..chunk.len()]);
+                    wos.fill(wo.0);
+                    let n = chunk.len();
+                    model.eval_pdf_batch(&wos[..n], chunk, &mut values[..n]);
                     black_box(&values);
                 }
             })
@@ -376,7 +381,8 @@ fn area_lights(c: &mut Criterion) {
         group.bench_function(format!("{name}_sample_direction_batch"), |b| {
             b.iter(|| {
                 for (point, us) in points.iter().zip(us.chunks(POINT_SAMPLES)) {
-                    emitter.sample_direction_batch(point, us, &mut samples);
+                    let references = [*point; POINT_SAMPLES];
+                    emitter.sample_direction_batch(&references, us, &mut samples);
                     black_box(&samples);
                 }
             })

@@ -456,7 +456,7 @@ fn study(args: StudyArgs) -> Result<()> {
         bar
     };
     let progress = Progress { bar, lines: !quiet };
-    // Ctrl-C stops at the next camera sample; every finished scene is already written, and the
+    // Ctrl-C stops at the next packet of camera samples; every finished scene is already written, and the
     // current one is written with its complete runs.
     let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
     let start = std::time::Instant::now();

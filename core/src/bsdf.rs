@@ -44,24 +44,30 @@ pub trait Bsdf: Send + Sync {
     fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
     fn flags(&self) -> BsdfFlags;
 
-    /// [`eval_pdf`](Self::eval_pdf) of `wo` with each direction of `wi`, into `out` (as long
-    /// as `wi`): the many samples of one shading point at once. The default calls `eval_pdf`
-    /// for each; a BSDF whose formulas are written over [`Lanes`] evaluates four at a time, bit
-    /// for bit as `eval_pdf`.
-    fn eval_pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [(Rgb, f32)]) {
-        assert_eq!(wi.len(), out.len(), "one result per direction");
-        for (wi, out) in wi.iter().zip(out) {
-            *out = self.eval_pdf(wo, *wi);
+    /// [`eval_pdf`](Self::eval_pdf) of each pair `(wo[k], wi[k])`, into `out[k]` (all three as
+    /// long): the many samples of one shading point, or one sample each of several camera
+    /// samples, at once. The default calls `eval_pdf` for each; a BSDF whose formulas are
+    /// written over [`Lanes`] evaluates four at a time, bit for bit as `eval_pdf`.
+    fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+        assert!(
+            wo.len() == out.len() && wi.len() == out.len(),
+            "one result per pair"
+        );
+        for ((wo, wi), out) in wo.iter().zip(wi).zip(out) {
+            *out = self.eval_pdf(*wo, *wi);
         }
     }
 
-    /// [`sample`](Self::sample) for each `(u_lobe, u)` of `u`, into `out` (as long as `u`).
-    /// The default calls `sample` for each; an override must give what `sample` gives, bit
-    /// for bit.
-    fn sample_batch(&self, wo: Vec3, u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
-        assert_eq!(u.len(), out.len(), "one result per sample");
-        for (&(u_lobe, u), out) in u.iter().zip(out) {
-            *out = self.sample(wo, u_lobe, u);
+    /// [`sample`](Self::sample) for each `wo[k]` and `u[k] = (u_lobe, u)`, into `out[k]` (all
+    /// three as long). The default calls `sample` for each; an override must give what `sample`
+    /// gives, bit for bit.
+    fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
+        assert!(
+            wo.len() == out.len() && u.len() == out.len(),
+            "one result per sample"
+        );
+        for ((wo, &(u_lobe, u)), out) in wo.iter().zip(u).zip(out) {
+            *out = self.sample(*wo, u_lobe, u);
         }
     }
 }
@@ -129,17 +135,20 @@ pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option
 }
 
 /// [`Bsdf::eval_pdf_batch`] for a BSDF whose `eval_pdf` is written over [`Lanes`]
-/// (`eval_pdf(wo, wi)`): four directions at a time.
+/// (`eval_pdf(wo, wi)`): four pairs at a time.
 #[inline(always)]
 pub fn eval_pdf_by_fours(
-    wo: Vec3,
+    wo: &[Vec3],
     wi: &[Vec3],
     out: &mut [(Rgb, f32)],
     eval_pdf: impl Fn(V3<Vec4>, V3<Vec4>) -> (V3<Vec4>, Vec4),
 ) {
-    let wo = V3::splat(wo);
-    by_fours(wi, out, |wi, out| {
-        let (value, pdf) = eval_pdf(wo, V3::from_fn(|i| wi[i]));
+    assert!(
+        wo.len() == out.len() && wi.len() == out.len(),
+        "one result per pair"
+    );
+    by_fours(out, |k, out| {
+        let (value, pdf) = eval_pdf(V3::from_fn(|i| wo[k[i]]), V3::from_fn(|i| wi[k[i]]));
         for (i, out) in out.iter_mut().enumerate() {
             *out = (value.lane(i), pdf[i]);
         }
@@ -150,16 +159,22 @@ pub fn eval_pdf_by_fours(
 /// (`sample(wo, u_lobe, (u0, u1))`): four samples at a time.
 #[inline(always)]
 pub fn sample_by_fours(
-    wo: Vec3,
+    wo: &[Vec3],
     u: &[(f32, Vec2)],
     out: &mut [Option<BsdfSample>],
     sample: impl Fn(V3<Vec4>, Vec4, (Vec4, Vec4)) -> BsdfSampleLanes<Vec4>,
 ) {
-    let wo = V3::splat(wo);
-    by_fours(u, out, |u, out| {
-        let u_lobe = Vec4::from_fn(|i| u[i].0);
-        let u2 = (Vec4::from_fn(|i| u[i].1.x), Vec4::from_fn(|i| u[i].1.y));
-        let samples = sample(wo, u_lobe, u2);
+    assert!(
+        wo.len() == out.len() && u.len() == out.len(),
+        "one result per sample"
+    );
+    by_fours(out, |k, out| {
+        let u_lobe = Vec4::from_fn(|i| u[k[i]].0);
+        let u2 = (
+            Vec4::from_fn(|i| u[k[i]].1.x),
+            Vec4::from_fn(|i| u[k[i]].1.y),
+        );
+        let samples = sample(V3::from_fn(|i| wo[k[i]]), u_lobe, u2);
         for (i, out) in out.iter_mut().enumerate() {
             *out = samples.lane(i);
         }

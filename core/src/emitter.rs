@@ -37,18 +37,22 @@ pub struct EmitterSample {
 /// A light source.
 pub trait Emitter: Send + Sync {
     fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample>;
-    /// [`sample_direction`](Self::sample_direction) for each of `u`, into `out` (as long as
-    /// `u`): the many samples of one shading point at once. The default calls
-    /// `sample_direction` for each; an override (an emitter whose formulas are written over
-    /// [`crate::math::lanes::Lanes`]) must give what it gives, bit for bit.
+    /// [`sample_direction`](Self::sample_direction) from each `reference[k]` with `u[k]`, into
+    /// `out[k]` (all three as long): the many samples of one shading point, or one sample each
+    /// of several camera samples, at once. The default calls `sample_direction` for each; an
+    /// override (an emitter whose formulas are written over [`crate::math::lanes::Lanes`])
+    /// must give what it gives, bit for bit.
     fn sample_direction_batch(
         &self,
-        reference: &ReferencePoint,
+        reference: &[ReferencePoint],
         u: &[Vec2],
         out: &mut [Option<EmitterSample>],
     ) {
-        assert_eq!(u.len(), out.len(), "one result per sample");
-        for (u, out) in u.iter().zip(out) {
+        assert!(
+            reference.len() == out.len() && u.len() == out.len(),
+            "one result per sample"
+        );
+        for ((reference, u), out) in reference.iter().zip(u).zip(out) {
             *out = self.sample_direction(reference, *u);
         }
     }
@@ -112,16 +116,19 @@ impl<L: Lanes> EmitterSampleLanes<L> {
 /// samples at a time.
 #[inline(always)]
 pub fn sample_direction_by_fours(
-    reference: &ReferencePoint,
+    reference: &[ReferencePoint],
     u: &[Vec2],
     out: &mut [Option<EmitterSample>],
     radiance: Rgb,
     sample: impl Fn(V3<Vec4>, (Vec4, Vec4)) -> EmitterSampleLanes<Vec4>,
 ) {
-    let reference = V3::splat(reference.position);
-    by_fours(u, out, |u, out| {
-        let u = (Vec4::from_fn(|i| u[i].x), Vec4::from_fn(|i| u[i].y));
-        let samples = sample(reference, u);
+    assert!(
+        reference.len() == out.len() && u.len() == out.len(),
+        "one result per sample"
+    );
+    by_fours(out, |k, out| {
+        let u2 = (Vec4::from_fn(|i| u[k[i]].x), Vec4::from_fn(|i| u[k[i]].y));
+        let samples = sample(V3::from_fn(|i| reference[k[i]].position), u2);
         for (i, out) in out.iter_mut().enumerate() {
             *out = samples.lane(i, radiance);
         }

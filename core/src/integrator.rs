@@ -103,6 +103,24 @@ pub trait Integrator: Send + Sync {
     /// only add: core may shade a pixel's samples in parts and add the parts' sums.
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb;
 
+    /// [`shade`](Self::shade) for camera samples of one pixel at once (a packet core traced
+    /// together, [`CameraSample::trace_together`]): writes each one's estimate to `radiance`
+    /// (as long as `samples`) and adds their statistics to `sums`. The default shades them one
+    /// by one; an integrator whose work batches across samples overrides it, and must give what
+    /// `shade` gives, bit for bit (estimates and sums).
+    fn shade_together(
+        &self,
+        scene: &Scene,
+        samples: &mut [CameraSample],
+        sums: &mut [f64],
+        radiance: &mut [Rgb],
+    ) {
+        assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
+        for (sample, radiance) in samples.iter_mut().zip(radiance) {
+            *radiance = self.shade(scene, sample, sums);
+        }
+    }
+
     /// Turns a pixel's sums over its `samples` camera samples into its AOV values (`aovs`, in
     /// the order of [`aovs`](Self::aovs), channels consecutive). Called once per finished pixel.
     fn resolve(&self, _scene: &Scene, _sums: &[f64], _samples: u32, _aovs: &mut [f32]) {}

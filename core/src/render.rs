@@ -215,7 +215,8 @@ pub fn render(
 }
 
 /// As [`render`], but stops soon after `cancel` becomes true: it is checked before every
-/// camera sample, so a render stops within one camera sample per thread. A pixel is *finished*
+/// packet of camera samples (the [`PACKET_SIZE`] samples of a pixel traced and shaded
+/// together), so a render stops within one packet per thread. A pixel is *finished*
 /// when all its `spp` camera samples are done; the film holds every finished pixel, the pixels
 /// that were not finished stay black (colour and AOVs zero), and the statistics count both.
 pub fn render_cancellable(
@@ -439,26 +440,29 @@ impl TileSums {
             stride,
         };
         let window = scene.window;
-        // The camera samples of a pixel, made and traced PACKET_SIZE at a time.
+        // The camera samples of a pixel, made, traced and shaded PACKET_SIZE at a time.
         let mut batch = Vec::with_capacity(PACKET_SIZE);
+        let mut radiance = [Rgb::ZERO; PACKET_SIZE];
         'pixels: for y in 0..size.y {
             for x in 0..size.x {
                 let i = (y * size.x + x) as usize;
                 let pixel = UVec2::new(window.x + origin.x + x, window.y + origin.y + y);
                 let sums = &mut tile.sums[i * stride..(i + 1) * stride];
                 for first in (0..scene.spp).step_by(PACKET_SIZE) {
+                    if cancel.load(Ordering::Relaxed) {
+                        sums.fill(0.0);
+                        tile.color[i] = DVec3::ZERO;
+                        tile.samples[i] = 0;
+                        break 'pixels;
+                    }
                     let last = (first + PACKET_SIZE as u32).min(scene.spp);
                     batch.clear();
                     batch.extend((first..last).map(|s| CameraSample::new(scene, pixel, s)));
                     CameraSample::trace_together(scene, &mut batch);
-                    for sample in &mut batch {
-                        if cancel.load(Ordering::Relaxed) {
-                            sums.fill(0.0);
-                            tile.color[i] = DVec3::ZERO;
-                            tile.samples[i] = 0;
-                            break 'pixels;
-                        }
-                        tile.color[i] += integrator.shade(scene, sample, sums).as_dvec3();
+                    let radiance = &mut radiance[..batch.len()];
+                    integrator.shade_together(scene, &mut batch, sums, radiance);
+                    for r in radiance.iter() {
+                        tile.color[i] += r.as_dvec3();
                         tile.samples[i] += 1;
                     }
                 }

@@ -83,7 +83,7 @@ impl Progress {
 
 /// Runs a study: every scene's reference, rounds of runs and report, and returns the finished
 /// scenes' analyses (whose tables are [`report::results_table`] and [`report::trade_table`]);
-/// stops at the next camera sample once `cancel` is set, after writing what it has (the
+/// stops at the next packet of camera samples once `cancel` is set, after writing what it has (the
 /// finished scenes, and the current one with its complete runs).
 pub fn run(
     config: &StudyConfig,

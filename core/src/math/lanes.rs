@@ -443,22 +443,15 @@ impl<L: Lanes> Div<L> for V3<L> {
     }
 }
 
-/// Runs `kernel` over `inputs` four at a time; each call gets four inputs and writes the
-/// results of as many as there are left (up to four) into the outputs it is given (`outputs`
-/// is as long as `inputs`). A last group of fewer than four repeats its last input in the lanes
-/// left, whose results are not written.
+/// Runs `kernel` over the indices of `outputs` four at a time: each call gets four indices and
+/// writes the results of as many as there are left (up to four) into the outputs it is given. A
+/// last group of fewer than four repeats its last index in the lanes left, whose results are
+/// not written.
 #[inline(always)]
-pub fn by_fours<I: Copy, O>(
-    inputs: &[I],
-    outputs: &mut [O],
-    mut kernel: impl FnMut([I; 4], &mut [O]),
-) {
-    assert_eq!(inputs.len(), outputs.len(), "one output per input");
-    for (inputs, outputs) in inputs.chunks(4).zip(outputs.chunks_mut(4)) {
-        kernel(
-            std::array::from_fn(|i| inputs[i.min(inputs.len() - 1)]),
-            outputs,
-        );
+pub fn by_fours<O>(outputs: &mut [O], mut kernel: impl FnMut([usize; 4], &mut [O])) {
+    for (group, outputs) in outputs.chunks_mut(4).enumerate() {
+        let last = outputs.len() - 1;
+        kernel(std::array::from_fn(|i| 4 * group + i.min(last)), outputs);
     }
 }
 
@@ -595,9 +588,9 @@ mod tests {
     fn by_fours_covers_every_input_once() {
         let inputs: Vec<f32> = (0..7).map(|i| i as f32).collect();
         let mut outputs = vec![0.0; 7];
-        by_fours(&inputs, &mut outputs, |x, out| {
-            for (o, x) in out.iter_mut().zip(x) {
-                *o = 2.0 * x;
+        by_fours(&mut outputs, |indices, out| {
+            for (o, i) in out.iter_mut().zip(indices) {
+                *o = 2.0 * inputs[i];
             }
         });
         assert_eq!(outputs, vec![0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0]);

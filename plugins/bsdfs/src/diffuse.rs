@@ -72,11 +72,11 @@ impl Bsdf for Diffuse {
         self.sample_lanes::<f32>(V3::splat(wo), (u.x, u.y)).lane(0)
     }
 
-    fn eval_pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+    fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
         eval_pdf_by_fours(wo, wi, out, |wo, wi| self.eval_pdf_lanes::<Vec4>(wo, wi));
     }
 
-    fn sample_batch(&self, wo: Vec3, u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
+    fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
         sample_by_fours(wo, u, out, |wo, _, u| self.sample_lanes::<Vec4>(wo, u));
     }
 

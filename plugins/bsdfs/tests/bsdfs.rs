@@ -409,7 +409,8 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
 /// The batch entry points give what the single calls give, bit for bit: `sample_batch` what
 /// `sample` gives for each `(u_lobe, u)`, `eval_pdf_batch` what `eval_pdf` gives for each
 /// direction. Batches of every length a group of four can end with (1 to 3 left over, and
-/// longer ones), for ωo at the test incidences and hostile ones (below the horizon, grazing,
+/// longer ones), of one ωo (one shading point) or of several (one per camera sample), for ωo at
+/// the test incidences and hostile ones (below the horizon, grazing,
 /// exactly normal, a hair above the horizon, off the normal by 1e-20); the numbers from a
 /// seeded stream with the corners 0, 1/2 and 0.9999999 in some lanes, the directions sampled,
 /// uniform over the sphere and special (the poles, the horizon, just below it, the mirror
@@ -496,14 +497,23 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                             (ul, u)
                         })
                         .collect();
+                    // One shading point (ωo for every element) in even rounds; in odd ones, the
+                    // elements of several (the camera samples of a pixel), each its own ωo.
+                    let wos: Vec<Vec3> = (0..len)
+                        .map(|k| match round % 2 {
+                            0 => wo,
+                            _ => incidences[(k + round) % incidences.len()],
+                        })
+                        .collect();
                     let mut out = vec![Some(sentinel); len];
-                    b.sample_batch(wo, &u, &mut out);
+                    b.sample_batch(&wos, &u, &mut out);
                     let drawn = out.iter().filter(|s| s.is_some()).count();
                     // (Of the BSDFs with their own batch code.)
                     if name == "diffuse" || name.starts_with("glossy") {
                         mixed += (drawn > 0 && drawn < len) as usize;
                     }
                     for (k, (&(ul, uk), batch)) in u.iter().zip(&out).enumerate() {
+                        let wo = wos[k];
                         let single = b.sample(wo, ul, uk);
                         assert_eq!(
                             sample_bits(*batch),
@@ -538,8 +548,9 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                         })
                         .collect();
                     let mut out = vec![(Vec3::NAN, f32::NAN); len];
-                    b.eval_pdf_batch(wo, &wi, &mut out);
+                    b.eval_pdf_batch(&wos, &wi, &mut out);
                     for (k, (&wik, &batch)) in wi.iter().zip(&out).enumerate() {
+                        let wo = wos[k];
                         let single = b.eval_pdf(wo, wik);
                         assert_eq!(
                             eval_pdf_bits(batch),

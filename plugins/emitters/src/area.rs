@@ -255,7 +255,7 @@ impl Emitter for AreaEmitter {
 
     fn sample_direction_batch(
         &self,
-        reference: &ReferencePoint,
+        reference: &[ReferencePoint],
         u: &[Vec2],
         out: &mut [Option<EmitterSample>],
     ) {

@@ -694,6 +694,7 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
     let mut mixed_area = 0;
     for (name, light, from) in &cases {
         let (mut some, mut none, mut mixed) = (0usize, 0usize, 0usize);
+        let from_all: &[Vec3] = from;
         for &from in from {
             let r = ReferencePoint { position: from };
             for round in 0..ROUNDS {
@@ -713,10 +714,20 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                             u
                         })
                         .collect();
+                    // One reference point in even rounds; in odd ones, each element from one of
+                    // the case's points (the camera samples of a pixel).
+                    let references: Vec<ReferencePoint> = (0..len)
+                        .map(|k| match round % 2 {
+                            0 => r,
+                            _ => ReferencePoint {
+                                position: from_all[(k + round) % from_all.len()],
+                            },
+                        })
+                        .collect();
                     let mut out = vec![Some(sentinel); len];
-                    light.sample_direction_batch(&r, &u, &mut out);
+                    light.sample_direction_batch(&references, &u, &mut out);
                     for (k, (&uk, batch)) in u.iter().zip(&out).enumerate() {
-                        let single = light.sample_direction(&r, uk);
+                        let single = light.sample_direction(&references[k], uk);
                         assert_eq!(
                             bits(batch),
                             bits(&single),

@@ -5,12 +5,14 @@
 
 use crate::aovs::LightTally;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, DeferredLookups, Densities, SampleRecord, ShadingPoint, draw_bsdf_samples,
-    draw_light_samples,
+    BSDF_SAMPLE_NUMBERS, BatchScratch, DeferredLookups, Densities, SampleRecord, ShadingPoint,
+    draw_bsdf_samples, draw_light_samples, light_record, push_bsdf_record,
 };
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
 use glam::UVec2;
+use lumis_core::accel::PACKET_SIZE;
+use lumis_core::emitter::ReferencePoint;
 use lumis_core::math::Rgb;
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
@@ -46,7 +48,7 @@ impl SampleSplit {
 }
 
 /// One light's estimate at one shading point.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LightEstimate {
     /// The estimate of the radiance reflected from this light, L̂_j.
     pub value: Rgb,
@@ -64,6 +66,24 @@ pub trait Allocation: Send + Sync {
         sampling: &mut LightSampling,
         weighting: &W,
     ) -> LightEstimate;
+
+    /// [`estimate`](Self::estimate) for the samplings of one light at several shading points
+    /// (the camera samples of a pixel): `estimates[k]` for `samplings[k]`, `None` entries
+    /// skipped. The default estimates them one by one; an allocation whose phases do not depend
+    /// on each other's results may draw them together ([`LightSampling::phases_together`]),
+    /// giving each what `estimate` would, bit for bit.
+    fn estimate_together<W: Weighting + ?Sized>(
+        &self,
+        samplings: &mut [Option<LightSampling>],
+        weighting: &W,
+        estimates: &mut [LightEstimate],
+    ) {
+        for (sampling, estimate) in samplings.iter_mut().zip(estimates) {
+            if let Some(sampling) = sampling {
+                *estimate = self.estimate(sampling, weighting);
+            }
+        }
+    }
 
     /// Work once per scene before rendering (e.g. a pilot pass over the image whose
     /// statistics, filtered over neighbouring pixels, `estimate` then reads per pixel and light
@@ -83,6 +103,8 @@ pub struct PhaseBuffers {
 thread_local! {
     static PHASE_BUFFERS: std::cell::RefCell<PhaseBuffers> =
         std::cell::RefCell::new(PhaseBuffers::default());
+    static PACKET_BUFFERS: std::cell::RefCell<[PhaseBuffers; PACKET_SIZE]> =
+        std::cell::RefCell::new(Default::default());
 }
 
 impl PhaseBuffers {
@@ -91,6 +113,12 @@ impl PhaseBuffers {
     /// re-entrant: `f` must not call it again.
     pub fn with_thread_local<R>(f: impl FnOnce(&mut PhaseBuffers) -> R) -> R {
         PHASE_BUFFERS.with_borrow_mut(f)
+    }
+
+    /// Runs `f` with this thread's buffers for the camera samples of one packet, one each (for
+    /// [`LightSampling::phases_together`]). Not re-entrant.
+    pub fn with_thread_local_packet<R>(f: impl FnOnce(&mut [PhaseBuffers; PACKET_SIZE]) -> R) -> R {
+        PACKET_BUFFERS.with_borrow_mut(f)
     }
 }
 
@@ -193,30 +221,14 @@ impl<'a> LightSampling<'a> {
         weighting: &W,
         observer: &mut O,
     ) -> Rgb {
+        let densities = densities_for(weighting);
+        self.buffers.records.clear();
+        self.prefetch_first_light_sample(split);
         let PhaseBuffers {
-            records,
-            contributions,
-            deferred,
+            records, deferred, ..
         } = &mut *self.buffers;
-        records.clear();
         let (scene, point, light) = (self.scene, self.point, self.light);
-        let densities = if weighting.needs_both_densities() {
-            Densities::Both
-        } else {
-            Densities::Lit
-        };
         let sampler = &mut *self.sampler;
-        if split.n_light > 0 && split.n_bsdf > 0 {
-            // The first light sample's numbers are known now, after the BSDF samples' three
-            // each: the light may start reading what sampling them needs (an environment map's
-            // alias slot, a cache miss) while the BSDF samples trace their rays.
-            let first_light_numbers = || {
-                let mut ahead = sampler.clone();
-                ahead.skip(BSDF_SAMPLE_NUMBERS * split.n_bsdf);
-                ahead.next_2d()
-            };
-            scene.emitters[light].prefetch_sample(&first_light_numbers);
-        }
         draw_bsdf_samples(
             scene,
             point,
@@ -236,12 +248,138 @@ impl<'a> LightSampling<'a> {
             records,
             densities,
         );
-        deferred.look_up(scene, point, light, records);
+        self.finish_phase(split, role, weighting, observer)
+    }
+
+    /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
+    /// camera samples of a pixel), with no observer: `split_of(sampling)` for each, whose
+    /// estimate goes to `values[k]` (`None` entries skipped). The samples are drawn with one
+    /// batch call per technique for all the points (for the BSDF, one per run of points that
+    /// share a BSDF), each from its own stream in the order `phase` draws it, so that every
+    /// sampling gets what `phase` would give it, bit for bit.
+    pub fn phases_together<W: Weighting + ?Sized>(
+        samplings: &mut [Option<LightSampling>],
+        split_of: impl Fn(&LightSampling) -> SampleSplit,
+        role: PhaseRole,
+        weighting: &W,
+        values: &mut [Rgb],
+    ) {
+        let densities = densities_for(weighting);
+        let Some((scene, light)) = samplings
+            .iter()
+            .flatten()
+            .next()
+            .map(|s| (s.scene, s.light))
+        else {
+            return;
+        };
+        BatchScratch::with_thread_local(|scratch| {
+            scratch.clear();
+            for (k, sampling) in samplings.iter_mut().enumerate() {
+                let Some(sampling) = sampling else { continue };
+                let split = split_of(sampling);
+                sampling.buffers.records.clear();
+                sampling.prefetch_first_light_sample(split);
+                for _ in 0..split.n_bsdf {
+                    let numbers = (sampling.sampler.next_1d(), sampling.sampler.next_2d());
+                    scratch.owners.push(k);
+                    scratch.wo.push(sampling.point.wo);
+                    scratch.bsdf_numbers.push(numbers);
+                }
+            }
+            let point_of = |k: usize| samplings[k].as_ref().map(|s| s.point);
+            scratch.sample_bsdfs(|k| point_of(k).expect("an owner has a sampling").bsdf);
+            for (&owner, &s) in scratch.owners.iter().zip(&scratch.bsdf_samples) {
+                let Some(sampling) = samplings[owner].as_mut() else {
+                    continue;
+                };
+                let PhaseBuffers {
+                    records, deferred, ..
+                } = &mut *sampling.buffers;
+                push_bsdf_record(
+                    scene,
+                    sampling.point,
+                    light,
+                    s,
+                    densities,
+                    records,
+                    Some(deferred),
+                );
+            }
+            scratch.owners.clear();
+            scratch.wo.clear();
+            for (k, sampling) in samplings.iter_mut().enumerate() {
+                let Some(sampling) = sampling else { continue };
+                for _ in 0..split_of(sampling).n_light {
+                    scratch.owners.push(k);
+                    scratch.wo.push(sampling.point.wo);
+                    scratch.references.push(ReferencePoint {
+                        position: sampling.point.hit.position,
+                    });
+                    scratch.light_numbers.push(sampling.sampler.next_2d());
+                }
+            }
+            let point_of = |k: usize| samplings[k].as_ref().map(|s| s.point);
+            scratch.sample_light(scene.emitters[light].as_ref(), |k| {
+                point_of(k).expect("an owner has a sampling")
+            });
+            for ((&owner, ls), &value) in scratch
+                .owners
+                .iter()
+                .zip(&scratch.light_samples)
+                .zip(&scratch.values)
+            {
+                let Some(sampling) = samplings[owner].as_mut() else {
+                    continue;
+                };
+                sampling.buffers.records.push(match ls {
+                    Some(ls) => light_record(scene, sampling.point, ls, densities, || value),
+                    None => SampleRecord::default(),
+                });
+            }
+        });
+        for (sampling, value) in samplings.iter_mut().zip(values) {
+            if let Some(sampling) = sampling {
+                let split = split_of(sampling);
+                *value = sampling.finish_phase(split, role, weighting, &mut ());
+            }
+        }
+    }
+
+    /// Before a phase of `split` is drawn: lets the light start reading what its first light
+    /// sample will need (an environment map's alias slot, a cache miss) while the BSDF samples
+    /// trace their rays. Its numbers are known now, after the BSDF samples' three each.
+    fn prefetch_first_light_sample(&self, split: SampleSplit) {
+        if split.n_light > 0 && split.n_bsdf > 0 {
+            let first_light_numbers = || {
+                let mut ahead = self.sampler.clone();
+                ahead.skip(BSDF_SAMPLE_NUMBERS * split.n_bsdf);
+                ahead.next_2d()
+            };
+            self.scene.emitters[self.light].prefetch_sample(&first_light_numbers);
+        }
+    }
+
+    /// The rest of a phase whose records are drawn: the deferred lookups, the weights, the
+    /// observer and the AOV statistics.
+    fn finish_phase<W: Weighting + ?Sized, O: Observer + ?Sized>(
+        &mut self,
+        split: SampleSplit,
+        role: PhaseRole,
+        weighting: &W,
+        observer: &mut O,
+    ) -> Rgb {
+        let PhaseBuffers {
+            records,
+            contributions,
+            deferred,
+        } = &mut *self.buffers;
+        deferred.look_up(self.scene, self.point, self.light, records);
         contributions.clear();
         contributions.resize(records.len(), Rgb::ZERO);
         let phase = Phase {
             pixel: self.pixel,
-            light,
+            light: self.light,
             split,
             records,
         };
@@ -269,11 +407,40 @@ impl<'a> LightSampling<'a> {
     }
 }
 
+/// The densities the records of a phase weighed by `weighting` need.
+fn densities_for<W: Weighting + ?Sized>(weighting: &W) -> Densities {
+    if weighting.needs_both_densities() {
+        Densities::Both
+    } else {
+        Densities::Lit
+    }
+}
+
 /// A fixed fraction α of each light's samples from the BSDF, in one phase: `bsdf` (α = 1),
 /// `light` (α = 0), the heuristics (α = ½). Light sampling can never reach a Dirac lobe, so
 /// α = 0 gives a purely specular BSDF BSDF samples instead.
 pub struct FixedAlpha {
     pub alpha: f64,
+}
+
+impl FixedAlpha {
+    /// The split of `sampling`'s N samples: α of them from the BSDF, or all of them where the
+    /// BSDF is a Dirac lobe and α = 0 (light sampling cannot reach it).
+    fn split(&self, sampling: &LightSampling) -> SampleSplit {
+        let alpha = if self.alpha == 0.0 && sampling.shading_point().is_pure_delta() {
+            1.0
+        } else {
+            self.alpha
+        };
+        SampleSplit::new(alpha, sampling.samples())
+    }
+
+    fn estimate_of(split: SampleSplit, value: Rgb) -> LightEstimate {
+        LightEstimate {
+            value,
+            alpha: split.n_bsdf as f64 / split.total() as f64,
+        }
+    }
 }
 
 impl Allocation for FixedAlpha {
@@ -282,17 +449,37 @@ impl Allocation for FixedAlpha {
         sampling: &mut LightSampling,
         weighting: &W,
     ) -> LightEstimate {
-        let n = sampling.samples();
-        let alpha = if self.alpha == 0.0 && sampling.shading_point().is_pure_delta() {
-            1.0
-        } else {
-            self.alpha
-        };
-        let split = SampleSplit::new(alpha, n);
+        let split = self.split(sampling);
         let value = sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ());
-        LightEstimate {
-            value,
-            alpha: split.n_bsdf as f64 / n as f64,
+        Self::estimate_of(split, value)
+    }
+
+    /// One phase each, drawn together, a packet's worth at a time.
+    fn estimate_together<W: Weighting + ?Sized>(
+        &self,
+        samplings: &mut [Option<LightSampling>],
+        weighting: &W,
+        estimates: &mut [LightEstimate],
+    ) {
+        let chunks = samplings
+            .chunks_mut(PACKET_SIZE)
+            .zip(estimates.chunks_mut(PACKET_SIZE));
+        for (samplings, estimates) in chunks {
+            let mut values = [Rgb::ZERO; PACKET_SIZE];
+            let values = &mut values[..samplings.len()];
+            LightSampling::phases_together(
+                samplings,
+                |s| self.split(s),
+                PhaseRole::ESTIMATE,
+                weighting,
+                values,
+            );
+            let results = samplings.iter().zip(values.iter());
+            for ((sampling, &value), estimate) in results.zip(estimates) {
+                if let Some(sampling) = sampling {
+                    *estimate = Self::estimate_of(self.split(sampling), value);
+                }
+            }
         }
     }
 }

@@ -15,7 +15,7 @@
 use glam::{Vec2, Vec3};
 use lumis_core::accel::{FirstHit, Intersection, Ray};
 use lumis_core::bsdf::{Bsdf, BsdfSample};
-use lumis_core::emitter::{EmitterHit, EmitterSample, ReferencePoint};
+use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
@@ -298,25 +298,116 @@ impl DeferredLookups {
 /// drawn or not: what follows a phase's BSDF samples is known in advance.
 pub const BSDF_SAMPLE_NUMBERS: u32 = 3;
 
-/// Space for the batch calls of one phase ([`Bsdf::sample_batch`],
-/// [`Emitter::sample_direction_batch`], [`Bsdf::eval_pdf_batch`]), reused by each thread: no
-/// allocation per sample.
+/// Space for the batch calls of the estimator ([`Bsdf::sample_batch`],
+/// [`Emitter::sample_direction_batch`], [`Bsdf::eval_pdf_batch`]): their inputs and results,
+/// one entry per sample, reused by each thread so that no sample allocates.
 ///
 /// [`Bsdf::sample_batch`]: lumis_core::bsdf::Bsdf::sample_batch
 /// [`Bsdf::eval_pdf_batch`]: lumis_core::bsdf::Bsdf::eval_pdf_batch
 /// [`Emitter::sample_direction_batch`]: lumis_core::emitter::Emitter::sample_direction_batch
 #[derive(Default)]
-struct BatchScratch {
-    bsdf_numbers: Vec<(f32, Vec2)>,
-    bsdf_samples: Vec<Option<BsdfSample>>,
-    light_numbers: Vec<Vec2>,
-    light_samples: Vec<Option<EmitterSample>>,
-    directions: Vec<Vec3>,
-    values: Vec<(Rgb, f32)>,
+pub(crate) struct BatchScratch {
+    /// The shading point each entry belongs to (an index the caller gives meaning to).
+    pub(crate) owners: Vec<usize>,
+    /// ωo of each entry's shading point.
+    pub(crate) wo: Vec<Vec3>,
+    pub(crate) bsdf_numbers: Vec<(f32, Vec2)>,
+    pub(crate) bsdf_samples: Vec<Option<BsdfSample>>,
+    pub(crate) references: Vec<ReferencePoint>,
+    pub(crate) light_numbers: Vec<Vec2>,
+    pub(crate) light_samples: Vec<Option<EmitterSample>>,
+    /// Each light sample's direction in its shading point's frame.
+    pub(crate) directions: Vec<Vec3>,
+    /// The BSDF's `eval_pdf` toward each light sample.
+    pub(crate) values: Vec<(Rgb, f32)>,
 }
 
 thread_local! {
     static BATCH_SCRATCH: RefCell<BatchScratch> = RefCell::new(BatchScratch::default());
+}
+
+impl BatchScratch {
+    /// Runs `f` with this thread's scratch space. Not re-entrant.
+    pub(crate) fn with_thread_local<R>(f: impl FnOnce(&mut BatchScratch) -> R) -> R {
+        BATCH_SCRATCH.with_borrow_mut(f)
+    }
+
+    /// Empties every list (keeping their memory).
+    pub(crate) fn clear(&mut self) {
+        self.owners.clear();
+        self.wo.clear();
+        self.bsdf_numbers.clear();
+        self.bsdf_samples.clear();
+        self.references.clear();
+        self.light_numbers.clear();
+        self.light_samples.clear();
+        self.directions.clear();
+        self.values.clear();
+    }
+
+    /// The BSDF samples of the entries in `bsdf_numbers`, with `wo`, into `bsdf_samples`: one
+    /// batch call per run of consecutive entries whose shading points (`owner`'s) share a BSDF.
+    pub(crate) fn sample_bsdfs<'a>(&mut self, bsdf_of: impl Fn(usize) -> &'a dyn Bsdf) {
+        self.bsdf_samples.resize(self.bsdf_numbers.len(), None);
+        for_runs(&self.owners, &bsdf_of, |bsdf, run| {
+            bsdf.sample_batch(
+                &self.wo[run.clone()],
+                &self.bsdf_numbers[run.clone()],
+                &mut self.bsdf_samples[run],
+            );
+        });
+    }
+
+    /// The light samples of the entries in `light_numbers` from `references`, into
+    /// `light_samples`, and the BSDF toward each (`directions` in its shading point's frame,
+    /// `frame_of(owner)`), into `values`: one batch call for the light, one per run of
+    /// consecutive entries whose shading points share a BSDF for the BSDF.
+    pub(crate) fn sample_light<'a>(
+        &mut self,
+        emitter: &dyn Emitter,
+        point_of: impl Fn(usize) -> &'a ShadingPoint<'a>,
+    ) {
+        let n = self.light_numbers.len();
+        self.light_samples.resize(n, None);
+        emitter.sample_direction_batch(
+            &self.references,
+            &self.light_numbers,
+            &mut self.light_samples,
+        );
+        // The BSDF toward every sample at once; a sample it cannot reflect toward has its value
+        // ignored, as `light_record` would not have asked for it.
+        self.directions.extend(
+            self.light_samples
+                .iter()
+                .zip(&self.owners)
+                .map(|(ls, &owner)| ls.map_or(Vec3::Z, |ls| point_of(owner).frame.to_local(ls.wi))),
+        );
+        self.values.resize(n, (Rgb::ZERO, 0.0));
+        for_runs(&self.owners, &|owner| point_of(owner).bsdf, |bsdf, run| {
+            bsdf.eval_pdf_batch(
+                &self.wo[run.clone()],
+                &self.directions[run.clone()],
+                &mut self.values[run],
+            );
+        });
+    }
+}
+
+/// Calls `f(bsdf, range)` for each run of consecutive entries of `owners` whose owners have the
+/// same BSDF (`bsdf_of`).
+fn for_runs<'a>(
+    owners: &[usize],
+    bsdf_of: &impl Fn(usize) -> &'a dyn Bsdf,
+    mut f: impl FnMut(&'a dyn Bsdf, std::ops::Range<usize>),
+) {
+    let mut start = 0;
+    while start < owners.len() {
+        let bsdf = bsdf_of(owners[start]);
+        let same = |&owner: &usize| std::ptr::addr_eq(bsdf_of(owner), bsdf);
+        let end = start + owners[start..].iter().take_while(|o| same(o)).count();
+        f(bsdf, start..end);
+        start = end;
+    }
 }
 
 /// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
@@ -339,78 +430,98 @@ pub fn draw_bsdf_samples(
     densities: Densities,
     mut deferred: Option<&mut DeferredLookups>,
 ) {
+    if count == 1 {
+        let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
+        let s = sp.bsdf.sample(sp.wo, u_lobe, u);
+        push_bsdf_record(scene, sp, light, s, densities, records, deferred);
+        return;
+    }
+    BatchScratch::with_thread_local(|scratch| {
+        scratch.clear();
+        for _ in 0..count {
+            scratch.owners.push(0);
+            scratch.wo.push(sp.wo);
+            scratch
+                .bsdf_numbers
+                .push((sampler.next_1d(), sampler.next_2d()));
+        }
+        scratch.sample_bsdfs(|_| sp.bsdf);
+        for &s in &scratch.bsdf_samples {
+            push_bsdf_record(
+                scene,
+                sp,
+                light,
+                s,
+                densities,
+                records,
+                deferred.as_deref_mut(),
+            );
+        }
+    });
+}
+
+/// Appends the record of BSDF sample `s` (`None`: no direction drawn) for non-delta light
+/// `light` at `sp`, as [`draw_bsdf_samples`] describes.
+pub(crate) fn push_bsdf_record(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    s: Option<BsdfSample>,
+    densities: Densities,
+    records: &mut Vec<SampleRecord>,
+    deferred: Option<&mut DeferredLookups>,
+) {
+    let Some(s) = s else {
+        records.push(SampleRecord::default());
+        return;
+    };
     let emitter = scene.emitters[light].as_ref();
     let reference = ReferencePoint {
         position: sp.hit.position,
     };
-    let both = densities == Densities::Both;
     let light_shape = scene.emitter_shape[light];
-    let mut record = |s: Option<BsdfSample>| {
-        let Some(s) = s else {
-            records.push(SampleRecord::default());
-            return;
-        };
-        let black = SampleRecord {
-            p_bsdf: s.pdf,
-            delta: s.delta,
-            ..SampleRecord::default()
-        };
-        let wi = sp.frame.to_world(s.wi);
-        let ray = sp.hit.spawn_ray(wi);
-        // A black sample's light density, when asked for (a Dirac sample has none to match).
-        let black_of_both = || SampleRecord {
-            p_light: light_density_toward(scene, light, light_shape, &reference, &ray),
-            ..black
-        };
-        let black = || {
-            if both && !s.delta {
-                black_of_both()
-            } else {
-                black
+    let black = SampleRecord {
+        p_bsdf: s.pdf,
+        delta: s.delta,
+        ..SampleRecord::default()
+    };
+    let wi = sp.frame.to_world(s.wi);
+    let ray = sp.hit.spawn_ray(wi);
+    // A black sample's light density, when asked for (a Dirac sample has none to match).
+    let black = || {
+        if densities == Densities::Both && !s.delta {
+            SampleRecord {
+                p_light: light_density_toward(scene, light, light_shape, &reference, &ray),
+                ..black
             }
-        };
-        if !sp.reflects_toward(wi) {
-            records.push(black());
-            return;
-        }
-        match reaches_light(scene, light, light_shape, &ray) {
-            Reached::Nothing => records.push(black()),
-            Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
-                emitter.pdf_direction(&reference, wi, Some(&hit))
-            })),
-            Reached::Environment => match deferred.as_deref_mut() {
-                Some(deferred) => {
-                    deferred.0.push(DeferredLookup {
-                        record: records.len(),
-                        sample: s,
-                        wi,
-                    });
-                    records.push(SampleRecord::default());
-                }
-                None => {
-                    let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
-                    records.push(reached_record(&s, le, || p_light));
-                }
-            },
+        } else {
+            black
         }
     };
-    if count == 1 {
-        let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
-        record(sp.bsdf.sample(sp.wo, u_lobe, u));
+    if !sp.reflects_toward(wi) {
+        records.push(black());
         return;
     }
-    BATCH_SCRATCH.with_borrow_mut(|scratch| {
-        let numbers = &mut scratch.bsdf_numbers;
-        numbers.clear();
-        numbers.extend((0..count).map(|_| (sampler.next_1d(), sampler.next_2d())));
-        let samples = &mut scratch.bsdf_samples;
-        samples.clear();
-        samples.resize(numbers.len(), None);
-        sp.bsdf.sample_batch(sp.wo, numbers, samples);
-        for &s in samples.iter() {
-            record(s);
-        }
-    });
+    match reaches_light(scene, light, light_shape, &ray) {
+        Reached::Nothing => records.push(black()),
+        Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
+            emitter.pdf_direction(&reference, wi, Some(&hit))
+        })),
+        Reached::Environment => match deferred {
+            Some(deferred) => {
+                deferred.0.push(DeferredLookup {
+                    record: records.len(),
+                    sample: s,
+                    wi,
+                });
+                records.push(SampleRecord::default());
+            }
+            None => {
+                let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
+                records.push(reached_record(&s, le, || p_light));
+            }
+        },
+    }
 }
 
 /// Draws `count` samples of non-delta light `light` for `sp` and appends their records, with
@@ -445,28 +556,16 @@ pub fn draw_light_samples(
         }));
         return;
     }
-    BATCH_SCRATCH.with_borrow_mut(|scratch| {
-        let numbers = &mut scratch.light_numbers;
-        numbers.clear();
-        numbers.extend((0..count).map(|_| sampler.next_2d()));
-        let samples = &mut scratch.light_samples;
-        samples.clear();
-        samples.resize(numbers.len(), None);
-        emitter.sample_direction_batch(&reference, numbers, samples);
-        // The BSDF toward every sample at once; a sample it cannot reflect toward has its value
-        // ignored, as `light_record` would not have asked for it.
-        let directions = &mut scratch.directions;
-        directions.clear();
-        directions.extend(
-            samples
-                .iter()
-                .map(|ls| ls.map_or(Vec3::Z, |ls| sp.frame.to_local(ls.wi))),
-        );
-        let values = &mut scratch.values;
-        values.clear();
-        values.resize(directions.len(), (Rgb::ZERO, 0.0));
-        sp.bsdf.eval_pdf_batch(sp.wo, directions, values);
-        for (ls, &value) in samples.iter().zip(values.iter()) {
+    BatchScratch::with_thread_local(|scratch| {
+        scratch.clear();
+        for _ in 0..count {
+            scratch.owners.push(0);
+            scratch.wo.push(sp.wo);
+            scratch.references.push(reference);
+            scratch.light_numbers.push(sampler.next_2d());
+        }
+        scratch.sample_light(emitter, |_| sp);
+        for (ls, &value) in scratch.light_samples.iter().zip(&scratch.values) {
             records.push(match ls {
                 Some(ls) => light_record(scene, sp, ls, densities, || value),
                 None => SampleRecord::default(),
@@ -478,7 +577,7 @@ pub fn draw_light_samples(
 /// The record of light sample `ls` at `sp`, given the BSDF's `eval_pdf` toward it
 /// (`eval_pdf()`, asked for only where the surface can reflect toward the sample or both
 /// densities are wanted).
-fn light_record(
+pub(crate) fn light_record(
     scene: &Scene,
     sp: &ShadingPoint,
     ls: &EmitterSample,

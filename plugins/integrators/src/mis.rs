@@ -5,10 +5,11 @@
 //! family is one file that picks the two (e.g. `balance`: α = ½, balance weights) and
 //! registers itself.
 
-use crate::allocation::{Allocation, LightSampling, PhaseBuffers};
+use crate::allocation::{Allocation, LightEstimate, LightSampling, PhaseBuffers};
 use crate::aovs::{self, AovRequest, LightTally};
 use crate::estimator::{ShadingPoint, emitted, estimate_delta_light};
 use crate::weighting::Weighting;
+use lumis_core::accel::PACKET_SIZE;
 use lumis_core::integrator::{CameraSample, Integrator};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;
@@ -124,6 +125,77 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
             }
         });
         radiance
+    }
+
+    /// Each light's phases for the packet's samples drawn together
+    /// ([`Allocation::estimate_together`]), when no AOV asks for statistics (their sums would
+    /// be added in another order); one by one otherwise.
+    fn shade_together(
+        &self,
+        scene: &Scene,
+        samples: &mut [CameraSample],
+        sums: &mut [f64],
+        radiance: &mut [Rgb],
+    ) {
+        assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
+        if self.aovs.any() || samples.len() > PACKET_SIZE {
+            for (sample, radiance) in samples.iter_mut().zip(radiance) {
+                *radiance = self.shade(scene, sample, sums);
+            }
+            return;
+        }
+        let mut points: [Option<ShadingPoint>; PACKET_SIZE] = Default::default();
+        for ((sample, point), radiance) in samples.iter().zip(&mut points).zip(radiance.iter_mut())
+        {
+            let ray = sample.ray;
+            *radiance = match sample.intersect(scene) {
+                None => scene.environment_radiance(ray.direction),
+                Some(hit) => {
+                    let emitted = emitted(scene, &hit, ray.direction);
+                    *point = Some(ShadingPoint::new(scene, hit, -ray.direction));
+                    emitted
+                }
+            };
+        }
+        PhaseBuffers::with_thread_local_packet(|buffers| {
+            for (light, emitter) in scene.emitters.iter().enumerate() {
+                if emitter.is_delta() {
+                    let shaded = samples.iter_mut().zip(&points).zip(radiance.iter_mut());
+                    for ((sample, point), radiance) in shaded {
+                        if let Some(sp) = point {
+                            *radiance +=
+                                estimate_delta_light(scene, sp, light, &mut sample.sampler);
+                        }
+                    }
+                    continue;
+                }
+                let mut lit = samples.iter_mut().zip(&points).zip(buffers.iter_mut());
+                let mut samplings: [Option<LightSampling>; PACKET_SIZE] =
+                    std::array::from_fn(|_| {
+                        let ((sample, point), buffers) = lit.next()?;
+                        let sp = point.as_ref()?;
+                        let sampling = LightSampling::new(
+                            scene,
+                            sp,
+                            light,
+                            sample.pixel,
+                            self.samples,
+                            &mut sample.sampler,
+                            buffers,
+                        );
+                        Some(sampling.with_camera_sample(sample.index))
+                    });
+                let mut estimates = [LightEstimate::default(); PACKET_SIZE];
+                self.allocation
+                    .estimate_together(&mut samplings, &self.weighting, &mut estimates);
+                let estimated = samplings.iter().zip(&estimates).zip(radiance.iter_mut());
+                for ((sampling, estimate), radiance) in estimated {
+                    if sampling.is_some() {
+                        *radiance += estimate.value;
+                    }
+                }
+            }
+        });
     }
 
     fn resolve(&self, scene: &Scene, sums: &[f64], _samples: u32, aovs: &mut [f32]) {
