@@ -44,31 +44,47 @@ pub trait Bsdf: Send + Sync {
     fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
     fn flags(&self) -> BsdfFlags;
 
-    /// [`eval_pdf`](Self::eval_pdf) of each pair `(wo[k], wi[k])`, into `out[k]` (all three as
-    /// long): the many samples of one shading point, or one sample each of several camera
-    /// samples, at once. The default calls `eval_pdf` for each; a BSDF whose formulas are
-    /// written over [`Lanes`] evaluates four at a time, bit for bit as `eval_pdf`.
+    /// [`eval_pdf`](Self::eval_pdf) of each pair `(wo[k], wi[k])`, into `out[k]`: the many
+    /// samples of one shading point (then `wo` may hold their one ωo), or one sample each of
+    /// several camera samples, at once. `wi` is as long as `out`, `wo` too or of length 1. The
+    /// default calls `eval_pdf` for each; a BSDF whose formulas are written over [`Lanes`]
+    /// evaluates four at a time, bit for bit as `eval_pdf`.
     fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
-        assert!(
-            wo.len() == out.len() && wi.len() == out.len(),
-            "one result per pair"
-        );
-        for ((wo, wi), out) in wo.iter().zip(wi).zip(out) {
-            *out = self.eval_pdf(*wo, *wi);
+        assert!(wi.len() == out.len(), "one result per direction");
+        for (k, (wi, out)) in wi.iter().zip(out).enumerate() {
+            *out = self.eval_pdf(one_or_each(wo, k), *wi);
         }
     }
 
-    /// [`sample`](Self::sample) for each `wo[k]` and `u[k] = (u_lobe, u)`, into `out[k]` (all
-    /// three as long). The default calls `sample` for each; an override must give what `sample`
-    /// gives, bit for bit.
+    /// [`sample`](Self::sample) for each `wo[k]` and `u[k] = (u_lobe, u)`, into `out[k]`. `u`
+    /// is as long as `out`, `wo` too or of length 1 (one shading point). The default calls
+    /// `sample` for each; an override must give what `sample` gives, bit for bit.
     fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
-        assert!(
-            wo.len() == out.len() && u.len() == out.len(),
-            "one result per sample"
-        );
-        for ((wo, &(u_lobe, u)), out) in wo.iter().zip(u).zip(out) {
-            *out = self.sample(*wo, u_lobe, u);
+        assert!(u.len() == out.len(), "one result per sample");
+        for (k, (&(u_lobe, u), out)) in u.iter().zip(out).enumerate() {
+            *out = self.sample(one_or_each(wo, k), u_lobe, u);
         }
+    }
+}
+
+/// Element `k` of a batch argument that holds one value for every element or one for each.
+#[inline(always)]
+pub fn one_or_each<T: Copy>(values: &[T], k: usize) -> T {
+    assert!(
+        values.len() == 1 || k < values.len(),
+        "one value, or one per element"
+    );
+    values[if values.len() == 1 { 0 } else { k }]
+}
+
+/// The lanes of a batch argument (see [`one_or_each`]) for the elements `k`: one value in
+/// every lane, or each element's.
+#[inline(always)]
+fn gathered(values: &[Vec3], k: [usize; 4]) -> V3<Vec4> {
+    if values.len() == 1 {
+        V3::splat(values[0])
+    } else {
+        V3::from_fn(|i| values[k[i]])
     }
 }
 
@@ -143,12 +159,13 @@ pub fn eval_pdf_by_fours(
     out: &mut [(Rgb, f32)],
     eval_pdf: impl Fn(V3<Vec4>, V3<Vec4>) -> (V3<Vec4>, Vec4),
 ) {
+    assert!(wi.len() == out.len(), "one result per direction");
     assert!(
-        wo.len() == out.len() && wi.len() == out.len(),
-        "one result per pair"
+        wo.len() == 1 || wo.len() == out.len(),
+        "one ωo, or one per direction"
     );
     by_fours(out, |k, out| {
-        let (value, pdf) = eval_pdf(V3::from_fn(|i| wo[k[i]]), V3::from_fn(|i| wi[k[i]]));
+        let (value, pdf) = eval_pdf(gathered(wo, k), V3::from_fn(|i| wi[k[i]]));
         for (i, out) in out.iter_mut().enumerate() {
             *out = (value.lane(i), pdf[i]);
         }
@@ -164,9 +181,10 @@ pub fn sample_by_fours(
     out: &mut [Option<BsdfSample>],
     sample: impl Fn(V3<Vec4>, Vec4, (Vec4, Vec4)) -> BsdfSampleLanes<Vec4>,
 ) {
+    assert!(u.len() == out.len(), "one result per sample");
     assert!(
-        wo.len() == out.len() && u.len() == out.len(),
-        "one result per sample"
+        wo.len() == 1 || wo.len() == out.len(),
+        "one ωo, or one per sample"
     );
     by_fours(out, |k, out| {
         let u_lobe = Vec4::from_fn(|i| u[k[i]].0);
@@ -174,7 +192,7 @@ pub fn sample_by_fours(
             Vec4::from_fn(|i| u[k[i]].1.x),
             Vec4::from_fn(|i| u[k[i]].1.y),
         );
-        let samples = sample(V3::from_fn(|i| wo[k[i]]), u_lobe, u2);
+        let samples = sample(gathered(wo, k), u_lobe, u2);
         for (i, out) in out.iter_mut().enumerate() {
             *out = samples.lane(i);
         }

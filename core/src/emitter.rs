@@ -1,5 +1,6 @@
 //! The emitter interface: light sources, sampled in solid angle from a reference point.
 
+use crate::bsdf::one_or_each;
 use crate::math::Rgb;
 use crate::math::lanes::{Lanes, Mask, V3, by_fours};
 use crate::scene::shapes::ShapeGeometry;
@@ -38,8 +39,9 @@ pub struct EmitterSample {
 pub trait Emitter: Send + Sync {
     fn sample_direction(&self, reference: &ReferencePoint, u: Vec2) -> Option<EmitterSample>;
     /// [`sample_direction`](Self::sample_direction) from each `reference[k]` with `u[k]`, into
-    /// `out[k]` (all three as long): the many samples of one shading point, or one sample each
-    /// of several camera samples, at once. The default calls `sample_direction` for each; an
+    /// `out[k]`: the many samples of one shading point (then `reference` may hold its one
+    /// point), or one sample each of several camera samples, at once. `u` is as long as `out`,
+    /// `reference` too or of length 1. The default calls `sample_direction` for each; an
     /// override (an emitter whose formulas are written over [`crate::math::lanes::Lanes`])
     /// must give what it gives, bit for bit.
     fn sample_direction_batch(
@@ -48,12 +50,9 @@ pub trait Emitter: Send + Sync {
         u: &[Vec2],
         out: &mut [Option<EmitterSample>],
     ) {
-        assert!(
-            reference.len() == out.len() && u.len() == out.len(),
-            "one result per sample"
-        );
-        for ((reference, u), out) in reference.iter().zip(u).zip(out) {
-            *out = self.sample_direction(reference, *u);
+        assert!(u.len() == out.len(), "one result per sample");
+        for (k, (u, out)) in u.iter().zip(out).enumerate() {
+            *out = self.sample_direction(&one_or_each(reference, k), *u);
         }
     }
     /// The density `sample_direction` has of producing `wi`, which reaches the emitter at `hit`
@@ -122,13 +121,18 @@ pub fn sample_direction_by_fours(
     radiance: Rgb,
     sample: impl Fn(V3<Vec4>, (Vec4, Vec4)) -> EmitterSampleLanes<Vec4>,
 ) {
+    assert!(u.len() == out.len(), "one result per sample");
     assert!(
-        reference.len() == out.len() && u.len() == out.len(),
-        "one result per sample"
+        reference.len() == 1 || reference.len() == out.len(),
+        "one reference point, or one per sample"
     );
     by_fours(out, |k, out| {
         let u2 = (Vec4::from_fn(|i| u[k[i]].x), Vec4::from_fn(|i| u[k[i]].y));
-        let samples = sample(V3::from_fn(|i| reference[k[i]].position), u2);
+        let reference = match reference {
+            [one] => V3::splat(one.position),
+            _ => V3::from_fn(|i| reference[k[i]].position),
+        };
+        let samples = sample(reference, u2);
         for (i, out) in out.iter_mut().enumerate() {
             *out = samples.lane(i, radiance);
         }

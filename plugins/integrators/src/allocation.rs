@@ -5,15 +5,16 @@
 
 use crate::aovs::LightTally;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, BatchScratch, DeferredLookups, Densities, SampleRecord, ShadingPoint,
-    draw_bsdf_samples, draw_light_samples, light_record, push_bsdf_record,
+    BSDF_SAMPLE_NUMBERS, BatchScratch, BsdfRecords, DeferredLookups, Densities, SampleRecord,
+    ShadingPoint, draw_bsdf_samples, draw_light_samples, light_record,
 };
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
-use glam::UVec2;
+use glam::{UVec2, Vec4};
 use lumis_core::accel::PACKET_SIZE;
 use lumis_core::emitter::ReferencePoint;
 use lumis_core::math::Rgb;
+use lumis_core::math::lanes::Lanes;
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
 
@@ -296,12 +297,8 @@ impl<'a> LightSampling<'a> {
                 let PhaseBuffers {
                     records, deferred, ..
                 } = &mut *sampling.buffers;
-                push_bsdf_record(
-                    scene,
-                    sampling.point,
-                    light,
+                BsdfRecords::new(scene, sampling.point, light, densities).push(
                     s,
-                    densities,
                     records,
                     Some(deferred),
                 );
@@ -454,13 +451,29 @@ impl Allocation for FixedAlpha {
         Self::estimate_of(split, value)
     }
 
-    /// One phase each, drawn together, a packet's worth at a time.
+    /// One phase each, drawn together, a packet's worth at a time, when the points' phases are
+    /// too small to fill the batch kernels' lanes by themselves (fewer than four samples of a
+    /// technique); larger phases are drawn point by point, each a batch of its own, which costs
+    /// less than interleaving the points (N = 64 on the Veach scene: 10 % slower together).
     fn estimate_together<W: Weighting + ?Sized>(
         &self,
         samplings: &mut [Option<LightSampling>],
         weighting: &W,
         estimates: &mut [LightEstimate],
     ) {
+        let lanes = <Vec4 as Lanes>::WIDTH as u32;
+        let fills_lanes = |s: &LightSampling| {
+            let split = self.split(s);
+            split.n_bsdf >= lanes || split.n_light >= lanes
+        };
+        if samplings.iter().flatten().any(fills_lanes) {
+            for (sampling, estimate) in samplings.iter_mut().zip(estimates) {
+                if let Some(sampling) = sampling {
+                    *estimate = self.estimate(sampling, weighting);
+                }
+            }
+            return;
+        }
         let chunks = samplings
             .chunks_mut(PACKET_SIZE)
             .zip(estimates.chunks_mut(PACKET_SIZE));

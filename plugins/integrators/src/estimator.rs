@@ -433,94 +433,123 @@ pub fn draw_bsdf_samples(
     if count == 1 {
         let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
         let s = sp.bsdf.sample(sp.wo, u_lobe, u);
-        push_bsdf_record(scene, sp, light, s, densities, records, deferred);
+        BsdfRecords::new(scene, sp, light, densities).push(s, records, deferred);
         return;
     }
     BatchScratch::with_thread_local(|scratch| {
-        scratch.clear();
-        for _ in 0..count {
-            scratch.owners.push(0);
-            scratch.wo.push(sp.wo);
-            scratch
-                .bsdf_numbers
-                .push((sampler.next_1d(), sampler.next_2d()));
-        }
-        scratch.sample_bsdfs(|_| sp.bsdf);
-        for &s in &scratch.bsdf_samples {
-            push_bsdf_record(
-                scene,
-                sp,
-                light,
-                s,
-                densities,
-                records,
-                deferred.as_deref_mut(),
-            );
+        let numbers = &mut scratch.bsdf_numbers;
+        numbers.clear();
+        numbers.extend((0..count).map(|_| (sampler.next_1d(), sampler.next_2d())));
+        let samples = &mut scratch.bsdf_samples;
+        samples.clear();
+        samples.resize(numbers.len(), None);
+        sp.bsdf
+            .sample_batch(std::slice::from_ref(&sp.wo), numbers, samples);
+        let bsdf_records = BsdfRecords::new(scene, sp, light, densities);
+        for &s in samples.iter() {
+            bsdf_records.push(s, records, deferred.as_deref_mut());
         }
     });
 }
 
-/// Appends the record of BSDF sample `s` (`None`: no direction drawn) for non-delta light
-/// `light` at `sp`, as [`draw_bsdf_samples`] describes.
-pub(crate) fn push_bsdf_record(
-    scene: &Scene,
-    sp: &ShadingPoint,
+/// What the records of one light's BSDF samples at one shading point share.
+#[derive(Clone, Copy)]
+pub(crate) struct BsdfRecords<'a> {
+    scene: &'a Scene,
+    sp: &'a ShadingPoint<'a>,
     light: usize,
-    s: Option<BsdfSample>,
+    emitter: &'a dyn Emitter,
+    reference: ReferencePoint,
+    light_shape: Option<u32>,
     densities: Densities,
-    records: &mut Vec<SampleRecord>,
-    deferred: Option<&mut DeferredLookups>,
-) {
-    let Some(s) = s else {
-        records.push(SampleRecord::default());
-        return;
-    };
-    let emitter = scene.emitters[light].as_ref();
-    let reference = ReferencePoint {
-        position: sp.hit.position,
-    };
-    let light_shape = scene.emitter_shape[light];
-    let black = SampleRecord {
-        p_bsdf: s.pdf,
-        delta: s.delta,
-        ..SampleRecord::default()
-    };
-    let wi = sp.frame.to_world(s.wi);
-    let ray = sp.hit.spawn_ray(wi);
-    // A black sample's light density, when asked for (a Dirac sample has none to match).
-    let black = || {
-        if densities == Densities::Both && !s.delta {
-            SampleRecord {
-                p_light: light_density_toward(scene, light, light_shape, &reference, &ray),
-                ..black
-            }
-        } else {
-            black
+}
+
+impl<'a> BsdfRecords<'a> {
+    /// For non-delta light `light` at `sp`, with the densities `densities` asks for.
+    pub(crate) fn new(
+        scene: &'a Scene,
+        sp: &'a ShadingPoint<'a>,
+        light: usize,
+        densities: Densities,
+    ) -> Self {
+        BsdfRecords {
+            scene,
+            sp,
+            light,
+            emitter: scene.emitters[light].as_ref(),
+            reference: ReferencePoint {
+                position: sp.hit.position,
+            },
+            light_shape: scene.emitter_shape[light],
+            densities,
         }
-    };
-    if !sp.reflects_toward(wi) {
-        records.push(black());
-        return;
     }
-    match reaches_light(scene, light, light_shape, &ray) {
-        Reached::Nothing => records.push(black()),
-        Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
-            emitter.pdf_direction(&reference, wi, Some(&hit))
-        })),
-        Reached::Environment => match deferred {
-            Some(deferred) => {
-                deferred.0.push(DeferredLookup {
-                    record: records.len(),
-                    sample: s,
-                    wi,
-                });
-                records.push(SampleRecord::default());
+
+    /// Appends the record of BSDF sample `s` (`None`: no direction drawn), as
+    /// [`draw_bsdf_samples`] describes. Inlined into its two loops (one point's samples, a
+    /// packet's points).
+    #[inline(always)]
+    pub(crate) fn push(
+        &self,
+        s: Option<BsdfSample>,
+        records: &mut Vec<SampleRecord>,
+        deferred: Option<&mut DeferredLookups>,
+    ) {
+        let BsdfRecords {
+            scene,
+            sp,
+            light,
+            emitter,
+            reference,
+            light_shape,
+            densities,
+        } = *self;
+        let Some(s) = s else {
+            records.push(SampleRecord::default());
+            return;
+        };
+        let black = SampleRecord {
+            p_bsdf: s.pdf,
+            delta: s.delta,
+            ..SampleRecord::default()
+        };
+        let wi = sp.frame.to_world(s.wi);
+        let ray = sp.hit.spawn_ray(wi);
+        // A black sample's light density, when asked for (a Dirac sample has none to match).
+        let black = || {
+            if densities == Densities::Both && !s.delta {
+                SampleRecord {
+                    p_light: light_density_toward(scene, light, light_shape, &reference, &ray),
+                    ..black
+                }
+            } else {
+                black
             }
-            None => {
-                let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
-                records.push(reached_record(&s, le, || p_light));
-            }
-        },
+        };
+        if !sp.reflects_toward(wi) {
+            records.push(black());
+            return;
+        }
+        match reaches_light(scene, light, light_shape, &ray) {
+            Reached::Nothing => records.push(black()),
+            Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
+                emitter.pdf_direction(&reference, wi, Some(&hit))
+            })),
+            Reached::Environment => match deferred {
+                Some(deferred) => {
+                    deferred.0.push(DeferredLookup {
+                        record: records.len(),
+                        sample: s,
+                        wi,
+                    });
+                    records.push(SampleRecord::default());
+                }
+                None => {
+                    let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
+                    records.push(reached_record(&s, le, || p_light));
+                }
+            },
+        }
     }
 }
 
@@ -557,15 +586,28 @@ pub fn draw_light_samples(
         return;
     }
     BatchScratch::with_thread_local(|scratch| {
-        scratch.clear();
-        for _ in 0..count {
-            scratch.owners.push(0);
-            scratch.wo.push(sp.wo);
-            scratch.references.push(reference);
-            scratch.light_numbers.push(sampler.next_2d());
-        }
-        scratch.sample_light(emitter, |_| sp);
-        for (ls, &value) in scratch.light_samples.iter().zip(&scratch.values) {
+        let numbers = &mut scratch.light_numbers;
+        numbers.clear();
+        numbers.extend((0..count).map(|_| sampler.next_2d()));
+        let samples = &mut scratch.light_samples;
+        samples.clear();
+        samples.resize(numbers.len(), None);
+        emitter.sample_direction_batch(std::slice::from_ref(&reference), numbers, samples);
+        // The BSDF toward every sample at once; a sample it cannot reflect toward has its value
+        // ignored, as `light_record` would not have asked for it.
+        let directions = &mut scratch.directions;
+        directions.clear();
+        directions.extend(
+            samples
+                .iter()
+                .map(|ls| ls.map_or(Vec3::Z, |ls| sp.frame.to_local(ls.wi))),
+        );
+        let values = &mut scratch.values;
+        values.clear();
+        values.resize(directions.len(), (Rgb::ZERO, 0.0));
+        sp.bsdf
+            .eval_pdf_batch(std::slice::from_ref(&sp.wo), directions, values);
+        for (ls, &value) in samples.iter().zip(values.iter()) {
             records.push(match ls {
                 Some(ls) => light_record(scene, sp, ls, densities, || value),
                 None => SampleRecord::default(),
@@ -577,6 +619,7 @@ pub fn draw_light_samples(
 /// The record of light sample `ls` at `sp`, given the BSDF's `eval_pdf` toward it
 /// (`eval_pdf()`, asked for only where the surface can reflect toward the sample or both
 /// densities are wanted).
+#[inline(always)]
 pub(crate) fn light_record(
     scene: &Scene,
     sp: &ShadingPoint,

@@ -128,8 +128,8 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
     }
 
     /// Each light's phases for the packet's samples drawn together
-    /// ([`Allocation::estimate_together`]), when no AOV asks for statistics (their sums would
-    /// be added in another order); one by one otherwise.
+    /// ([`Allocation::estimate_together`]), when there are several samples and no AOV asks for
+    /// statistics (their sums would be added in another order); one by one otherwise.
     fn shade_together(
         &self,
         scene: &Scene,
@@ -138,7 +138,9 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
         radiance: &mut [Rgb],
     ) {
         assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
-        if self.aovs.any() || samples.len() > PACKET_SIZE {
+        // A packet of one (one sample a pixel) has nothing to share, and the packet's arrays
+        // below would cost it more than its own batches do.
+        if self.aovs.any() || samples.len() == 1 || samples.len() > PACKET_SIZE {
             for (sample, radiance) in samples.iter_mut().zip(radiance) {
                 *radiance = self.shade(scene, sample, sums);
             }
