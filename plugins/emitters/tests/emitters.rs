@@ -725,7 +725,12 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                         })
                         .collect();
                     let mut out = vec![Some(sentinel); len];
-                    light.sample_direction_batch(&references, &u, &mut out);
+                    // The one point given once in rounds divisible by four.
+                    let reference_argument = match round % 4 {
+                        0 => std::slice::from_ref(&r),
+                        _ => &references[..],
+                    };
+                    light.sample_direction_batch(reference_argument, &u, &mut out);
                     for (k, (&uk, batch)) in u.iter().zip(&out).enumerate() {
                         let single = light.sample_direction(&references[k], uk);
                         assert_eq!(
