@@ -115,13 +115,25 @@ pub trait Integrator: Send + Sync {
         sums: &mut [f64],
         radiance: &mut [Rgb],
     ) {
-        assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
-        for (sample, radiance) in samples.iter_mut().zip(radiance) {
-            *radiance = self.shade(scene, sample, sums);
-        }
+        shade_one_by_one(self, scene, samples, sums, radiance);
     }
 
     /// Turns a pixel's sums over its `samples` camera samples into its AOV values (`aovs`, in
     /// the order of [`aovs`](Self::aovs), channels consecutive). Called once per finished pixel.
     fn resolve(&self, _scene: &Scene, _sums: &[f64], _samples: u32, _aovs: &mut [f32]) {}
+}
+
+/// [`Integrator::shade_together`] done one sample at a time with
+/// [`shade`](Integrator::shade): the default, and an override's way out.
+pub fn shade_one_by_one<I: Integrator + ?Sized>(
+    integrator: &I,
+    scene: &Scene,
+    samples: &mut [CameraSample],
+    sums: &mut [f64],
+    radiance: &mut [Rgb],
+) {
+    assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
+    for (sample, radiance) in samples.iter_mut().zip(radiance) {
+        *radiance = integrator.shade(scene, sample, sums);
+    }
 }

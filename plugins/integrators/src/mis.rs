@@ -10,7 +10,7 @@ use crate::aovs::{self, AovRequest, LightTally};
 use crate::estimator::{ShadingPoint, emitted, estimate_delta_light};
 use crate::weighting::Weighting;
 use lumis_core::accel::PACKET_SIZE;
-use lumis_core::integrator::{CameraSample, Integrator};
+use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -137,15 +137,12 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
         sums: &mut [f64],
         radiance: &mut [Rgb],
     ) {
-        assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
         // A packet of one (one sample a pixel) has nothing to share, and the packet's arrays
         // below would cost it more than its own batches do.
         if self.aovs.any() || samples.len() == 1 || samples.len() > PACKET_SIZE {
-            for (sample, radiance) in samples.iter_mut().zip(radiance) {
-                *radiance = self.shade(scene, sample, sums);
-            }
-            return;
+            return shade_one_by_one(self, scene, samples, sums, radiance);
         }
+        assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
         let mut points: [Option<ShadingPoint>; PACKET_SIZE] = Default::default();
         for ((sample, point), radiance) in samples.iter().zip(&mut points).zip(radiance.iter_mut())
         {
