@@ -789,6 +789,23 @@ impl Geometry {
 
     /// Whether anything blocks the ray before `t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
+        self.blocked_by(ray, |_| true)
+    }
+
+    /// Whether anything but shape `ignored` blocks the ray before `t_max`: for a shadow ray
+    /// toward a point that shape cannot hide (see
+    /// [`Emitter::own_shape_never_blocks_samples`](crate::emitter::Emitter::own_shape_never_blocks_samples)).
+    #[inline]
+    pub fn occluded_by_others(&self, ray: &Ray, ignored: Option<u32>) -> bool {
+        match ignored {
+            None => self.occluded(ray),
+            Some(ignored) => self.blocked_by(ray, |primitive| primitive.shape() != ignored),
+        }
+    }
+
+    /// Whether a primitive that `counts` blocks the ray before `t_max`.
+    #[inline(always)]
+    fn blocked_by(&self, ray: &Ray, counts: impl Fn(&Primitive) -> bool) -> bool {
         count_rays(1);
         if self.primitives.is_empty() {
             return false;
@@ -800,7 +817,10 @@ impl Geometry {
             &boxes,
             ray.t_max,
             #[inline(always)]
-            |slot| self.primitives[slot].hit(ray, &shear, ray.t_max).is_some(),
+            |slot| {
+                let primitive = &self.primitives[slot];
+                counts(primitive) && primitive.hit(ray, &shear, ray.t_max).is_some()
+            },
         )
     }
 }
@@ -943,6 +963,28 @@ mod tests {
                     prop_assert_eq!((a.t, a.position), (b.t, b.position));
                     prop_assert_eq!(a.geometric_normal, b.geometric_normal);
                 }
+            }
+            Ok(())
+        });
+    }
+
+    /// A shadow ray that ignores one shape is blocked exactly when the brute force finds a
+    /// primitive of another shape before its end, for every shape of the scene.
+    #[test]
+    fn occlusion_by_others_ignores_one_shape() {
+        for_random_scenes_and_rays(|geometry, ray| {
+            for shape in 0..geometry.shapes.len() as u32 {
+                let others: Vec<Primitive> = (geometry.primitives.iter())
+                    .filter(|p| p.shape() != shape)
+                    .copied()
+                    .collect();
+                prop_assert_eq!(
+                    geometry.occluded_by_others(ray, Some(shape)),
+                    brute_force_closest(&others, ray).is_some(),
+                    "ray {:?}, shape {} ignored",
+                    ray,
+                    shape
+                );
             }
             Ok(())
         });

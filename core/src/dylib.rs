@@ -14,7 +14,8 @@ use std::sync::Mutex;
 
 /// Version of the plugin interface (the traits, `BsdfPlugin`, `Params`); bumped on any change.
 /// 2: `Bsdf` gained `eval_pdf_batch` and `sample_batch` (a new vtable layout).
-pub const API_VERSION: u32 = 2;
+/// 3: `Emitter` gained `own_shape_never_blocks_samples`.
+pub const API_VERSION: u32 = 3;
 
 /// The rustc that built this copy of lumis-core.
 pub const RUSTC_VERSION: &str = env!("LUMIS_RUSTC_VERSION");

@@ -82,6 +82,15 @@ pub trait Emitter: Send + Sync {
     fn prefetch_sample(&self, _u: &dyn Fn() -> Vec2) {}
     /// Point and directional lights: reached only by their own samples.
     fn is_delta(&self) -> bool;
+    /// Whether the shape the emitter is attached to can never block a shadow ray toward one of
+    /// its samples: every sample lies on a part of the shape that the reference point sees past
+    /// the rest of it (a sphere sampled in the cone it subtends, a planar shape). Shadow rays
+    /// toward the samples then skip that shape's primitives, which their rays would otherwise
+    /// test every time, since each ray ends on the shape. The default, false, is always safe: an
+    /// emitter that samples a sphere's far side by area relies on the shadow ray to reject it.
+    fn own_shape_never_blocks_samples(&self) -> bool {
+        false
+    }
     /// An environment: reached by rays that leave the scene (`hit` is then `None`).
     fn is_environment(&self) -> bool {
         false

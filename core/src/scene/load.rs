@@ -271,6 +271,11 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             emitter_shape[*emitter as usize] = Some(shape as u32);
         }
     }
+    let shadow_ray_skips = emitter_shape
+        .iter()
+        .zip(&emitters)
+        .map(|(shape, emitter)| shape.filter(|_| emitter.own_shape_never_blocks_samples()))
+        .collect();
     let scene = Scene {
         camera,
         width: film.width,
@@ -286,6 +291,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         shape_bsdf,
         shape_emitter,
         emitter_shape,
+        shadow_ray_skips,
         output,
         exposure: film.exposure,
     };

@@ -47,6 +47,9 @@ pub struct Scene {
     pub shape_emitter: Vec<Option<u32>>,
     /// Per light: the shape it is the area emitter of (None for the others).
     pub emitter_shape: Vec<Option<u32>>,
+    /// Per light: the shape its shadow rays need not test, its own when that shape can never
+    /// block its samples ([`Emitter::own_shape_never_blocks_samples`]).
+    pub shadow_ray_skips: Vec<Option<u32>>,
     /// Where the EXR goes (the PNG preview goes beside it).
     pub output: PathBuf,
     /// Exposure of the PNG preview, in stops.
@@ -65,6 +68,13 @@ impl Scene {
 
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.geometry.occluded(ray)
+    }
+
+    /// Whether the shadow ray toward a sample of light `light` is blocked.
+    #[inline]
+    pub fn occluded_toward_light(&self, ray: &Ray, light: usize) -> bool {
+        self.geometry
+            .occluded_by_others(ray, self.shadow_ray_skips[light])
     }
 
     pub fn bsdf(&self, hit: &Intersection) -> &dyn Bsdf {

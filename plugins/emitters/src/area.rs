@@ -44,6 +44,10 @@ pub struct AreaEmitter {
     radiance: Rgb,
     two_sided: bool,
     surface: Surface,
+    /// The shape cannot block a shadow ray toward its samples: a sphere (sampled in the cone
+    /// it subtends from outside, anywhere from inside: either way the segment to the sample
+    /// crosses no other part of it), or a planar mesh.
+    never_blocks_samples: bool,
 }
 
 impl AreaEmitter {
@@ -314,6 +318,30 @@ impl Emitter for AreaEmitter {
     fn is_delta(&self) -> bool {
         false
     }
+
+    fn own_shape_never_blocks_samples(&self) -> bool {
+        self.never_blocks_samples
+    }
+}
+
+/// Whether all of the triangles' vertices lie on one plane, up to the rounding of their
+/// coordinates (4 ulps of the largest): a segment from off the plane to a point on it crosses
+/// no other triangle then, except by rounding.
+fn is_planar(triangles: &[[Vec3; 3]]) -> bool {
+    let largest = triangles.iter().max_by(|a, b| {
+        let area = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length_squared();
+        area(a).total_cmp(&area(b))
+    });
+    let Some(&[a, b, c]) = largest else {
+        return false;
+    };
+    let [a, b, c] = [a, b, c].map(Vec3::as_dvec3);
+    let normal = (b - a).cross(c - a).normalize_or_zero();
+    let vertices = || triangles.iter().flatten();
+    let largest_coordinate = vertices().fold(0.0f32, |m, v| m.max(v.abs().max_element()));
+    let tolerance = 4.0 * f64::from(f32::EPSILON) * f64::from(largest_coordinate);
+    normal != glam::DVec3::ZERO
+        && vertices().all(|v| normal.dot(v.as_dvec3() - a).abs() <= tolerance)
 }
 
 static PARAMS: &[ParamSpec] = &[
@@ -371,10 +399,15 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
             }
         }
     };
+    let never_blocks_samples = match &surface {
+        Surface::Sphere(_) => true,
+        Surface::Triangles { triangles, .. } => is_planar(triangles),
+    };
     Ok(Arc::new(AreaEmitter {
         radiance,
         two_sided,
         surface,
+        never_blocks_samples,
     }))
 }
 

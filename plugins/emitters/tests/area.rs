@@ -324,3 +324,99 @@ fn scale_multiplies_the_radiance() {
     };
     assert_eq!(light.eval(sample.wi, Some(&hit)), Vec3::new(2.5, 5.0, 7.5));
 }
+
+/// How many of `light`'s samples, drawn from reference points around `shape` (uniform in a cube
+/// of side 8 about the origin, and 10⁻¹ or 10⁻² from the shape's points), have their shadow ray
+/// blocked by `shape` alone, out of how many samples. Rays that meet the shape at grazing angles
+/// (cosine under 10⁻²) are left out, as are nearer points: there the shape's own rounding at the
+/// ray's end (10⁻⁷ of its size) can exceed what is left by the ray's stopping 10⁻⁴ of its length
+/// short, which is no geometry, and rays that skip the shape are spared it too.
+fn samples_blocked_by_own_shape(light: &dyn Emitter, shape: &ShapeGeometry) -> (usize, usize) {
+    use lumis_core::accel::SHADOW_EPSILON;
+    let geometry = Geometry::new(vec![shape.clone()]);
+    let mut sampler = lumis_core::sampler::Sampler::new(17, 0, 0);
+    let (mut blocked, mut drawn) = (0, 0);
+    for k in 0..4000 {
+        let u = sampler.next_2d();
+        let mut from = Vec3::new(u.x, u.y, sampler.next_1d()) * 8.0 - 4.0;
+        if k % 2 == 1 {
+            // Beside a point of the shape itself: the shading point of a surface that touches it.
+            if let Some(own) = light.sample_direction(&ReferencePoint { position: from }, u) {
+                let near = own.position.expect("an area light's sample has a position");
+                let offset = 10f32.powi(-1 - (k / 2 % 2)) * (from - near).normalize_or_zero();
+                from = near + offset;
+            }
+        }
+        let Some(ls) =
+            light.sample_direction(&ReferencePoint { position: from }, sampler.next_2d())
+        else {
+            continue;
+        };
+        let target = ls.position.expect("an area light's sample has a position");
+        let along = Ray {
+            origin: from,
+            direction: ls.wi,
+            t_max: f32::INFINITY,
+        };
+        let Some(first) = geometry.intersect(&along) else {
+            continue;
+        };
+        if first.geometric_normal.dot(ls.wi).abs() < 1e-2 {
+            continue;
+        }
+        drawn += 1;
+        let ray = Ray {
+            origin: from,
+            direction: target - from,
+            t_max: 1.0 - SHADOW_EPSILON,
+        };
+        blocked += geometry.occluded(&ray) as usize;
+    }
+    (blocked, drawn)
+}
+
+/// Where the `area` light declares that its shape never blocks its samples (shadow rays then
+/// skip the shape), no sample's shadow ray is blocked by the shape: spheres, seen from outside,
+/// from inside and from next to their surface, and planar meshes, also turned so that their
+/// vertices are rounded off the plane. A folded mesh does not declare it, and rightly: a
+/// two-sided cube's samples on faces turned away are blocked by the faces in front.
+#[test]
+fn shapes_declared_never_to_block_their_samples_do_not() {
+    let turned = shapes::transform_matrix(&TransformDescription {
+        rotate: vec![RotationDescription {
+            axis: [0.3, 1.0, 0.7],
+            angle: 37.0,
+        }],
+        scale: Some([1.5, 0.25, 1.0]),
+        translate: Some([0.1, -0.7, 0.4]),
+        ..Default::default()
+    })
+    .unwrap();
+    let never_blocking = [
+        ShapeGeometry::Sphere(shapes::Sphere {
+            center: Vec3::new(0.2, -0.1, 0.3),
+            radius: 1.3,
+        }),
+        ShapeGeometry::Sphere(shapes::Sphere {
+            center: Vec3::new(1.0, 2.0, -0.5),
+            radius: 0.01,
+        }),
+        ShapeGeometry::Mesh(shapes::rectangle()),
+        ShapeGeometry::Mesh(shapes::rectangle().transformed(&turned)),
+        ShapeGeometry::Mesh(shapes::disk(24).transformed(&turned)),
+    ];
+    for shape in &never_blocking {
+        let light = area_light(shape, "\"radiance\": 1, \"two_sided\": true");
+        assert!(light.own_shape_never_blocks_samples(), "{shape:?}");
+        let (blocked, drawn) = samples_blocked_by_own_shape(light.as_ref(), shape);
+        assert!(drawn > 1000, "{drawn} samples of {shape:?}");
+        assert_eq!(blocked, 0, "of {drawn} samples of {shape:?}");
+    }
+    for folded in [shapes::cube(), shapes::cube().transformed(&turned)] {
+        let shape = ShapeGeometry::Mesh(folded);
+        let light = area_light(&shape, "\"radiance\": 1, \"two_sided\": true");
+        assert!(!light.own_shape_never_blocks_samples());
+        let (blocked, drawn) = samples_blocked_by_own_shape(light.as_ref(), &shape);
+        assert!(blocked > drawn / 10, "{blocked} of {drawn} blocked");
+    }
+}

@@ -321,7 +321,7 @@ impl<'a> LightSampling<'a> {
             {
                 let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
                 sampling.buffers.records.push(match ls {
-                    Some(ls) => light_record(scene, sampling.point, ls, densities, || value),
+                    Some(ls) => light_record(scene, sampling.point, light, ls, densities, || value),
                     None => SampleRecord::default(),
                 });
             }

@@ -60,13 +60,14 @@ impl<'a> ShadingPoint<'a> {
         self.normal.dot(wi_world) > 0.0
     }
 
-    /// Whether the light sample is unoccluded: a shadow ray to its point, or to infinity.
-    fn sees(&self, scene: &Scene, sample: &EmitterSample) -> bool {
+    /// Whether a sample of light `light` is unoccluded: a shadow ray to its point, or to
+    /// infinity.
+    fn sees(&self, scene: &Scene, light: usize, sample: &EmitterSample) -> bool {
         let ray = match sample.position {
             Some(target) => self.hit.spawn_ray_to(target),
             None => self.hit.spawn_ray(sample.wi),
         };
-        !scene.occluded(&ray)
+        !scene.occluded_toward_light(&ray, light)
     }
 
     /// Whether the surface can reflect toward a light sample: ωi on the viewer's side of the
@@ -580,7 +581,7 @@ pub fn draw_light_samples(
             return;
         };
         let wi = sp.frame.to_local(ls.wi);
-        records.push(light_record(scene, sp, &ls, densities, || {
+        records.push(light_record(scene, sp, light, &ls, densities, || {
             sp.bsdf.eval_pdf(sp.wo, wi)
         }));
         return;
@@ -609,20 +610,21 @@ pub fn draw_light_samples(
             .eval_pdf_batch(std::slice::from_ref(&sp.wo), directions, values);
         for (ls, &value) in samples.iter().zip(values.iter()) {
             records.push(match ls {
-                Some(ls) => light_record(scene, sp, ls, densities, || value),
+                Some(ls) => light_record(scene, sp, light, ls, densities, || value),
                 None => SampleRecord::default(),
             });
         }
     });
 }
 
-/// The record of light sample `ls` at `sp`, given the BSDF's `eval_pdf` toward it
+/// The record of light `light`'s sample `ls` at `sp`, given the BSDF's `eval_pdf` toward it
 /// (`eval_pdf()`, asked for only where the surface can reflect toward the sample or both
 /// densities are wanted).
 #[inline(always)]
 pub(crate) fn light_record(
     scene: &Scene,
     sp: &ShadingPoint,
+    light: usize,
     ls: &EmitterSample,
     densities: Densities,
     eval_pdf: impl FnOnce() -> (Rgb, f32),
@@ -635,7 +637,7 @@ pub(crate) fn light_record(
     } else {
         (Rgb::ZERO, 0.0)
     };
-    if !reflects || f == Rgb::ZERO || !sp.sees(scene, ls) {
+    if !reflects || f == Rgb::ZERO || !sp.sees(scene, light, ls) {
         return SampleRecord {
             p_light: ls.pdf,
             p_bsdf: if both { p_bsdf } else { 0.0 },
@@ -664,7 +666,7 @@ pub fn estimate_delta_light(
         return Rgb::ZERO;
     };
     let f = sp.eval_toward(&ls);
-    if f == Rgb::ZERO || !sp.sees(scene, &ls) {
+    if f == Rgb::ZERO || !sp.sees(scene, light, &ls) {
         return Rgb::ZERO;
     }
     f * ls.radiance / ls.pdf
