@@ -43,9 +43,10 @@
 //! Pixels that are not valid radiance — negative (lossy compression leaves small negative
 //! values) or not finite — are read as zero in that channel.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::image_io::read_exr_rgb;
+use lumis_core::math::lanes::{Lanes, V3, by_fours};
 use lumis_core::math::{Distribution2D, Rgb, luminance, prefetch};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::EmitterPlugin;
@@ -275,17 +276,22 @@ impl EnvironmentMap {
     /// World direction to map coordinates (u, v) in [0, 1]², and sin θ.
     #[inline]
     fn to_uv(&self, d: Vec3) -> (Vec2, f32) {
-        let (c, s) = self.rotation;
+        let (u, v, sin_theta) = self.to_uv_lanes::<f32>(V3::splat(d));
+        (Vec2::new(u, v), sin_theta)
+    }
+
+    /// [`Self::to_uv`] of each lane's direction: u, v and sin θ.
+    #[inline(always)]
+    fn to_uv_lanes<L: Lanes>(&self, d: V3<L>) -> (L, L, L) {
+        let (c, s) = (L::splat(self.rotation.0), L::splat(self.rotation.1));
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
         // Undo the rotation about +y.
-        let local = Vec3::new(c * d.x - s * d.z, d.y, s * d.x + c * d.z);
-        let cos_theta = local.y.clamp(-1.0, 1.0);
-        let phi = local.x.atan2(-local.z);
-        let u = ((phi + PI) / TAU).clamp(0.0, 1.0);
-        let v = (cos_theta.acos() / PI).clamp(0.0, 1.0);
-        (
-            Vec2::new(u, v),
-            (1.0 - cos_theta * cos_theta).max(0.0).sqrt(),
-        )
+        let (x, z) = (c * d.x - s * d.z, s * d.x + c * d.z);
+        let cos_theta = d.y.clamp(-one, one);
+        let phi = x.atan2(-z);
+        let u = ((phi + L::splat(PI)) / L::splat(TAU)).clamp(zero, one);
+        let v = (cos_theta.acos() / L::splat(PI)).clamp(zero, one);
+        (u, v, (one - cos_theta * cos_theta).max(zero).sqrt())
     }
 
     /// [`Self::to_uv`]'s coordinates within 3e-5 (1/16 of a pixel of a 2048 × 1024
@@ -303,16 +309,19 @@ impl EnvironmentMap {
     /// Map coordinates to a world direction.
     #[inline]
     fn to_direction(&self, uv: Vec2) -> Vec3 {
-        let phi = uv.x * TAU - PI;
-        let theta = uv.y * PI;
+        self.to_direction_lanes::<f32>(uv.x, uv.y).lane(0)
+    }
+
+    /// [`Self::to_direction`] of each lane's coordinates (u, v).
+    #[inline(always)]
+    fn to_direction_lanes<L: Lanes>(&self, u: L, v: L) -> V3<L> {
+        let phi = u * L::splat(TAU) - L::splat(PI);
+        let theta = v * L::splat(PI);
         let (sin_theta, cos_theta) = theta.sin_cos();
-        let local = Vec3::new(sin_theta * phi.sin(), cos_theta, -sin_theta * phi.cos());
-        let (c, s) = self.rotation;
-        Vec3::new(
-            c * local.x + s * local.z,
-            local.y,
-            -s * local.x + c * local.z,
-        )
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        let (x, z) = (sin_theta * sin_phi, -sin_theta * cos_phi);
+        let (c, s) = (L::splat(self.rotation.0), L::splat(self.rotation.1));
+        V3::new(c * x + s * z, cos_theta, -s * x + c * z)
     }
 
     /// Solid-angle density of the direction at map coordinates `uv`.
@@ -491,22 +500,32 @@ impl BilinearWarp {
     }
 }
 
-impl Emitter for EnvironmentMap {
-    fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
-        let sampled = self.sample_uv(u)?;
-        // Nearest: the sampled pixel's texel is read before the trigonometry below, so that its
-        // cache miss (a map is larger than the caches) overlaps that work.
-        let early = match self.sampling {
+impl EnvironmentMap {
+    /// Nearest: the texel of the pixel `sampled` lies in, read now, so that its cache miss (a
+    /// map is larger than the caches) overlaps the trigonometry that follows.
+    #[inline(always)]
+    fn read_early(&self, sampled: Vec2) -> Option<(usize, Texel)> {
+        match self.sampling {
             Sampling::Nearest(_) => {
                 let index = self.nearest_index(sampled);
                 Some((index, std::hint::black_box(self.texels[index])))
             }
             Sampling::Bilinear(_) => None,
-        };
-        let wi = self.to_direction(sampled);
+        }
+    }
+
+    /// The sample along `wi`, whose map coordinates are `uv` and polar sine `sin_theta`, with the
+    /// texel read early (`early`), or none where its density is not positive.
+    #[inline(always)]
+    fn finish_sample(
+        &self,
+        early: Option<(usize, Texel)>,
+        wi: Vec3,
+        uv: Vec2,
+        sin_theta: f32,
+    ) -> Option<EmitterSample> {
         // Radiance and density are those of the direction as `eval` and `pdf_direction` see it
         // (on a pixel's edge, rounding can move it into the neighbour), from one conversion.
-        let (uv, sin_theta) = self.to_uv(wi);
         let (radiance, pdf) = match early {
             Some((index, texel)) if index == self.nearest_index(uv) => {
                 (texel.radiance, solid_angle_pdf(texel.density, sin_theta))
@@ -522,6 +541,44 @@ impl Emitter for EnvironmentMap {
             pdf,
             radiance,
         })
+    }
+}
+
+impl Emitter for EnvironmentMap {
+    fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
+        let sampled = self.sample_uv(u)?;
+        let early = self.read_early(sampled);
+        let wi = self.to_direction(sampled);
+        let (uv, sin_theta) = self.to_uv(wi);
+        self.finish_sample(early, wi, uv, sin_theta)
+    }
+
+    /// Four samples at a time: the tables are read lane by lane, the trigonometry of the
+    /// conversions to and from directions runs in the four lanes of `Vec4`, with the same
+    /// operations as `sample_direction`'s.
+    fn sample_direction_batch(
+        &self,
+        _: &[ReferencePoint],
+        u: &[Vec2],
+        out: &mut [Option<EmitterSample>],
+    ) {
+        by_fours(out, |indices, out| {
+            let sampled = indices.map(|i| self.sample_uv(u[i]));
+            // Only a black map draws nothing, and then in no lane.
+            if sampled.iter().any(Option::is_none) {
+                out.fill(None);
+                return;
+            }
+            let sampled = sampled.map(|s| s.unwrap_or_default());
+            let early = sampled.map(|s| self.read_early(s));
+            let lanes = |coordinate: fn(Vec2) -> f32| Vec4::from_fn(|i| coordinate(sampled[i]));
+            let wi = self.to_direction_lanes(lanes(|s| s.x), lanes(|s| s.y));
+            let (u, v, sin_theta) = self.to_uv_lanes(wi);
+            for (k, out) in out.iter_mut().enumerate() {
+                let uv = Vec2::new(u.lane(k), v.lane(k));
+                *out = self.finish_sample(early[k], wi.lane(k), uv, sin_theta.lane(k));
+            }
+        });
     }
 
     fn pdf_direction(&self, _: &ReferencePoint, wi: Vec3, _: Option<&EmitterHit>) -> f32 {

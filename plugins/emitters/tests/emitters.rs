@@ -672,6 +672,16 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
             vec![Vec3::new(-4.0, 0.5, 2.0)],
         ),
         (
+            "bilinear envmap, Mitsuba's orientation",
+            emitter(
+                "envmap",
+                "\"file\": \"scenes/envmaps/studio.exr\", \"interpolation\": \"bilinear\", \
+                 \"orientation\": \"mitsuba\", \"rotation\": -75",
+                None,
+            ),
+            vec![Vec3::ZERO],
+        ),
+        (
             "point",
             emitter(
                 "point",
