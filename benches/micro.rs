@@ -456,6 +456,17 @@ fn envmap(c: &mut Criterion) {
                 }
             })
         });
+        // In batches of POINT_SAMPLES, as a shading point's light samples are drawn.
+        let mut samples = vec![None; POINT_SAMPLES];
+        group.bench_function("sample_direction_batch", |b| {
+            b.iter(|| {
+                for us in us.chunks(POINT_SAMPLES) {
+                    let out = &mut samples[..us.len()];
+                    map.sample_direction_batch(std::slice::from_ref(&reference), us, out);
+                    black_box(&out);
+                }
+            })
+        });
         group.bench_function("pdf_direction", |b| {
             b.iter(|| {
                 for &d in directions {
