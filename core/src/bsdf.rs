@@ -2,7 +2,7 @@
 //! `wo` points toward the viewer, `wi` toward the light; both are unit vectors.
 
 use crate::math::Rgb;
-use crate::math::lanes::{Lanes, V3, by_fours};
+use crate::math::lanes::{Lanes, V3, by_fours, one_or_each};
 use glam::{Vec2, Vec3, Vec4};
 
 /// Which kinds of lobes a BSDF has; integrators use it to skip work (e.g. light sampling is
@@ -67,27 +67,6 @@ pub trait Bsdf: Send + Sync {
     }
 }
 
-/// Element `k` of a batch argument that holds one value for every element or one for each.
-#[inline(always)]
-pub fn one_or_each<T: Copy>(values: &[T], k: usize) -> T {
-    assert!(
-        values.len() == 1 || k < values.len(),
-        "one value, or one per element"
-    );
-    values[if values.len() == 1 { 0 } else { k }]
-}
-
-/// The lanes of a batch argument (see [`one_or_each`]) for the elements `k`: one value in
-/// every lane, or each element's.
-#[inline(always)]
-fn gathered(values: &[Vec3], k: [usize; 4]) -> V3<Vec4> {
-    if values.len() == 1 {
-        V3::splat(values[0])
-    } else {
-        V3::from_fn(|i| values[k[i]])
-    }
-}
-
 /// Samples of a BSDF written over [`Lanes`]: one per lane, `valid` where the lane drew one.
 pub struct BsdfSampleLanes<L: Lanes> {
     pub valid: L::Mask,
@@ -134,20 +113,12 @@ impl<L: Lanes> BsdfSampleLanes<L> {
 /// pdf and weight eval/pdf from the BSDF itself, so they agree by construction. `None` below
 /// the horizon or where the density or the weight is not a positive finite number.
 pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
+    // `from_pdf` checks the direction too; checked first, it spares a doomed `eval_pdf`.
     if !(wi.z > 0.0 && wi.is_finite()) {
         return None;
     }
     let (value, pdf) = bsdf.eval_pdf(wo, wi);
-    if !(pdf > 0.0 && pdf.is_finite()) {
-        return None;
-    }
-    let weight = value / pdf;
-    weight.is_finite().then_some(BsdfSample {
-        wi,
-        pdf,
-        weight,
-        delta: false,
-    })
+    BsdfSampleLanes::<f32>::from_pdf(true, V3::splat(wi), (V3::splat(value), pdf)).lane(0)
 }
 
 /// [`Bsdf::eval_pdf_batch`] for a BSDF whose `eval_pdf` is written over [`Lanes`]
@@ -165,7 +136,7 @@ pub fn eval_pdf_by_fours(
         "one ωo, or one per direction"
     );
     by_fours(out, |k, out| {
-        let (value, pdf) = eval_pdf(gathered(wo, k), V3::from_fn(|i| wi[k[i]]));
+        let (value, pdf) = eval_pdf(V3::gather(wo, k, |wo| wo), V3::from_fn(|i| wi[k[i]]));
         for (i, out) in out.iter_mut().enumerate() {
             *out = (value.lane(i), pdf[i]);
         }
@@ -192,7 +163,7 @@ pub fn sample_by_fours(
             Vec4::from_fn(|i| u[k[i]].1.x),
             Vec4::from_fn(|i| u[k[i]].1.y),
         );
-        let samples = sample(gathered(wo, k), u_lobe, u2);
+        let samples = sample(V3::gather(wo, k, |wo| wo), u_lobe, u2);
         for (i, out) in out.iter_mut().enumerate() {
             *out = samples.lane(i);
         }

@@ -1,8 +1,7 @@
 //! The emitter interface: light sources, sampled in solid angle from a reference point.
 
-use crate::bsdf::one_or_each;
 use crate::math::Rgb;
-use crate::math::lanes::{Lanes, Mask, V3, by_fours};
+use crate::math::lanes::{Lanes, Mask, V3, by_fours, one_or_each};
 use crate::scene::shapes::ShapeGeometry;
 use glam::{Vec2, Vec3, Vec4};
 
@@ -137,11 +136,7 @@ pub fn sample_direction_by_fours(
     );
     by_fours(out, |k, out| {
         let u2 = (Vec4::from_fn(|i| u[k[i]].x), Vec4::from_fn(|i| u[k[i]].y));
-        let reference = match reference {
-            [one] => V3::splat(one.position),
-            _ => V3::from_fn(|i| reference[k[i]].position),
-        };
-        let samples = sample(reference, u2);
+        let samples = sample(V3::gather(reference, k, |r| r.position), u2);
         for (i, out) in out.iter_mut().enumerate() {
             *out = samples.lane(i, radiance);
         }

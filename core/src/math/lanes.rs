@@ -505,6 +505,29 @@ impl<L: Lanes> Div<L> for V3<L> {
     }
 }
 
+/// Element `k` of a batch argument that holds one value for every element or one for each.
+#[inline(always)]
+pub fn one_or_each<T: Copy>(values: &[T], k: usize) -> T {
+    assert!(
+        values.len() == 1 || k < values.len(),
+        "one value, or one per element"
+    );
+    values[if values.len() == 1 { 0 } else { k }]
+}
+
+impl V3<Vec4> {
+    /// The lanes of a batch argument (see [`one_or_each`]) for the elements `k`, each value's
+    /// vector `vector(value)`: one vector in every lane, or each element's.
+    #[inline(always)]
+    pub fn gather<T: Copy>(values: &[T], k: [usize; 4], vector: impl Fn(T) -> Vec3) -> Self {
+        if let [one] = values {
+            V3::splat(vector(*one))
+        } else {
+            V3::from_fn(|i| vector(values[k[i]]))
+        }
+    }
+}
+
 /// Runs `kernel` over the indices of `outputs` four at a time: each call gets four indices and
 /// writes the results of as many as there are left (up to four) into the outputs it is given. A
 /// last group of fewer than four repeats its last index in the lanes left, whose results are

@@ -61,12 +61,6 @@ struct Pair<L> {
 }
 
 impl<L: Lanes> Pair<L> {
-    /// Whether h is above the surface (the specular lobe is zero elsewhere).
-    #[inline(always)]
-    fn facing(&self) -> L::Mask {
-        self.h.z.gt(L::splat(0.0))
-    }
-
     /// Whether ωo or ωi is below the surface (the BSDF is zero there).
     #[inline(always)]
     fn below(&self) -> L::Mask {
@@ -199,8 +193,8 @@ impl Glossy {
             d,
             lambda_o,
         } = *pair;
-        let specular = self.specular_value(wo, wi, h, d, lambda_o);
-        let value = self.diffuse_value(wo, wi) + V3::select(pair.facing(), specular, V3::zero());
+        // D(h) is 0 where h is below the surface, and so is the specular lobe.
+        let value = self.diffuse_value(wo, wi) + self.specular_value(wo, wi, h, d, lambda_o);
         V3::select(pair.below(), V3::zero(), value)
     }
 
@@ -209,7 +203,6 @@ impl Glossy {
     fn density<L: Lanes>(&self, pair: &Pair<L>) -> L {
         let zero = L::splat(0.0);
         let specular_pdf = self.specular_pdf(pair.wo, pair.d, pair.lambda_o);
-        let specular_pdf = L::select(pair.facing(), specular_pdf, zero);
         let p = self.specular_probability(pair.wo);
         let pdf = p * specular_pdf + (L::splat(1.0) - p) * cosine_hemisphere_pdf_lanes(pair.wi.z);
         L::select(pair.below(), zero, pdf)

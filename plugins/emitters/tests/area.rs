@@ -409,7 +409,9 @@ fn shapes_declared_never_to_block_their_samples_do_not() {
         let light = area_light(shape, "\"radiance\": 1, \"two_sided\": true");
         assert!(light.own_shape_never_blocks_samples(), "{shape:?}");
         let (blocked, drawn) = samples_blocked_by_own_shape(light.as_ref(), shape);
-        assert!(drawn > 1000, "{drawn} samples of {shape:?}");
+        // 4000 of 4000 draws for the spheres, 3068 to 3217 for the flat shapes (rays grazing
+        // them left out).
+        assert!(drawn > 3000, "{drawn} samples of {shape:?}");
         assert_eq!(blocked, 0, "of {drawn} samples of {shape:?}");
     }
     for folded in [shapes::cube(), shapes::cube().transformed(&turned)] {
@@ -417,6 +419,8 @@ fn shapes_declared_never_to_block_their_samples_do_not() {
         let light = area_light(&shape, "\"radiance\": 1, \"two_sided\": true");
         assert!(!light.own_shape_never_blocks_samples());
         let (blocked, drawn) = samples_blocked_by_own_shape(light.as_ref(), &shape);
-        assert!(blocked > drawn / 10, "{blocked} of {drawn} blocked");
+        // About half: 1921 of 3841 and 1752 of 3724 (a face turned away is hidden by one in
+        // front), against none for the shapes above.
+        assert!(3 * blocked > drawn, "{blocked} of {drawn} blocked");
     }
 }

@@ -437,6 +437,7 @@ pub fn draw_bsdf_samples(
         BsdfRecords::new(scene, sp, light, densities).push(s, records, deferred);
         return;
     }
+    // One point's batch, without `BatchScratch::sample_bsdfs`' owners (see `draw_light_samples`).
     BatchScratch::with_thread_local(|scratch| {
         let numbers = &mut scratch.bsdf_numbers;
         numbers.clear();
@@ -586,6 +587,9 @@ pub fn draw_light_samples(
         }));
         return;
     }
+    // One point's batch, written out rather than through `BatchScratch::sample_light`, whose
+    // per-entry owners, ωo and frames a single point does not need (through it, the render
+    // loop took 5.5 % more instructions in the tenth round).
     BatchScratch::with_thread_local(|scratch| {
         let numbers = &mut scratch.light_numbers;
         numbers.clear();
