@@ -423,15 +423,16 @@ pub struct RayBoxTest {
 }
 
 impl RayBoxTest {
+    /// The reciprocals in one 4-lane division, each lane rounding as a scalar division does.
+    #[inline]
     pub fn new(origin: glam::Vec3, direction: glam::Vec3) -> Self {
-        let inv_direction = direction.to_array().map(|d| {
-            let inv = 1.0 / d;
-            if inv.is_finite() {
-                inv
-            } else {
-                f32::MAX.copysign(inv)
-            }
-        });
+        let inv = glam::Vec4::ONE / direction.extend(1.0);
+        let inv = glam::Vec4::select(
+            inv.is_finite_mask(),
+            inv,
+            glam::Vec4::splat(f32::MAX).copysign(inv),
+        );
+        let inv_direction = [inv.x, inv.y, inv.z];
         let near = [0, 1, 2].map(|axis| 2 * axis + (inv_direction[axis] < 0.0) as usize);
         RayBoxTest {
             origin: origin.to_array(),
