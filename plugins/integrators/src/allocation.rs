@@ -33,7 +33,9 @@ impl SampleSplit {
     /// independently of the samples it weighs; and the counts are deterministic (no random
     /// rounding), so images stay bit-identical across thread counts.
     pub fn new(alpha: f64, n: u32) -> Self {
-        let mut n_bsdf = ((alpha * n as f64 + 0.5).floor() as u32).min(n);
+        // The cast truncates: ⌊·⌋ at or above 0, and below 0 (or NaN) it gives 0, as the cast
+        // of the floor would. `f64::floor` is a libm call on baseline x86-64.
+        let mut n_bsdf = ((alpha * n as f64 + 0.5) as u32).min(n);
         if alpha > 0.0 && alpha < 1.0 && n >= 2 {
             n_bsdf = n_bsdf.clamp(1, n - 1);
         }

@@ -11,7 +11,6 @@
 //! linear system over the batch) fit as well as per-sample [`Heuristic`]s, which [`PerSample`]
 //! turns into a weighting.
 
-use crate::estimator::SampleRecord;
 use crate::phase::Phase;
 use glam::Vec4;
 use lumis_core::math::Rgb;
@@ -63,29 +62,61 @@ pub trait Heuristic: Send + Sync {
 /// record's f is already divided by the Dirac density).
 pub struct PerSample<H>(pub H);
 
+/// What a record's weight needs of its technique: the heuristic compares `k_own` · p_own with
+/// `k_other` · p_other, and the record contributes w f / (n_own p_own).
+#[derive(Clone, Copy)]
+struct Technique {
+    k_own: f32,
+    k_other: f32,
+    n_own: f32,
+    /// k_own / n_own: w / (n p) = (w / (k p)) · (k / n), exactly w / (k p) when k = n.
+    own_factor: f32,
+}
+
+impl Technique {
+    fn new(k_own: f32, k_other: f32, n_own: f32) -> Self {
+        Technique {
+            k_own,
+            k_other,
+            n_own,
+            own_factor: k_own / n_own,
+        }
+    }
+}
+
 impl<H: Heuristic> PerSample<H> {
-    /// Weighs the records of one technique (n_own samples), adding their contributions to
-    /// `value` in order. The heuristic compares `k_own` · p_own with `k_other` · p_other
-    /// (`densities` gives a record's (own, other) densities); a record contributes w f /
-    /// (n_own p_own). Weights are computed four records at a time.
-    #[inline]
-    fn weigh_technique(
-        &self,
-        records: &[SampleRecord],
-        (k_own, k_other): (f32, f32),
-        n_own: f32,
-        densities: impl Fn(&SampleRecord) -> (f32, f32),
-        contributions: &mut [Rgb],
-        value: &mut Rgb,
-    ) {
-        // w / (n p) = (w / (k p)) · (k / n): exactly w / (k p) when k = n.
-        let own_factor = k_own / n_own;
-        for (chunk, out) in records.chunks(4).zip(contributions.chunks_mut(4)) {
+    /// The phase weighed with each technique's n·p multiplied by a factor, `factors` = (c_B,
+    /// c_L): w_t = h(c_t n_t p_t, c_o n_o p_o), e.g. variance-aware weights (factors 1: the
+    /// heuristic itself, bit for bit). Contributions and their sum as [`Weighting::weigh`].
+    ///
+    /// Weights are computed four records at a time over the whole phase, BSDF records then
+    /// light records, each lane with its own technique's factors: a phase of a few samples
+    /// (two, in the race scenes) fills one vector rather than one per technique, which halves
+    /// the divisions the pass is bound by. Each lane computes what it would in a vector of its
+    /// technique alone, and the records are added in order, so the estimate is the same.
+    pub fn weigh_scaled(&self, phase: &Phase, contributions: &mut [Rgb], factors: [f32; 2]) -> Rgb {
+        let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
+        let (k_b, k_l) = (factors[0] * n_b, factors[1] * n_l);
+        let bsdf = Technique::new(k_b, k_l, n_b);
+        let light = Technique::new(k_l, k_b, n_l);
+        let n_bsdf = phase.split.n_bsdf as usize;
+        // Black records keep the zero their contribution starts with (adding it to the sum
+        // would change no bit).
+        let mut value = Rgb::ZERO;
+        let chunks = phase.records.chunks(4).zip(contributions.chunks_mut(4));
+        for (first, (chunk, out)) in (0..).step_by(4).zip(chunks) {
             // Lanes past the end hold equal products, which weigh ½ and are not used.
-            let (mut mine, mut other) = ([1.0f32; 4], [1.0f32; 4]);
+            let (mut mine, mut other, mut own_factor) = ([1.0f32; 4], [1.0f32; 4], [1.0f32; 4]);
+            let mut techniques = [bsdf; 4];
             for (i, r) in chunk.iter().enumerate() {
-                let (p_own, p_other) = densities(r);
-                (mine[i], other[i]) = (k_own * p_own, k_other * p_other);
+                let (t, p_own, p_other) = if first + i < n_bsdf {
+                    (bsdf, r.p_bsdf, r.p_light)
+                } else {
+                    (light, r.p_light, r.p_bsdf)
+                };
+                (mine[i], other[i]) = (t.k_own * p_own, t.k_other * p_other);
+                own_factor[i] = t.own_factor;
+                techniques[i] = t;
             }
             let (mine, other) = (Vec4::from_array(mine), Vec4::from_array(other));
             let w = Vec4::select(
@@ -94,43 +125,16 @@ impl<H: Heuristic> PerSample<H> {
                 self.0.weight4(mine, other),
             );
             // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
-            let scale = (w / mine * own_factor).to_array();
-            for ((r, c), scale) in chunk.iter().zip(out).zip(scale) {
+            let scale = (w / mine * Vec4::from_array(own_factor)).to_array();
+            let lanes = chunk.iter().zip(out).zip(scale).zip(techniques);
+            for (((r, c), scale), t) in lanes {
                 if r.is_black() {
                     continue;
                 }
-                *c = if r.delta { r.f / n_own } else { r.f * scale };
-                *value += *c;
+                *c = if r.delta { r.f / t.n_own } else { r.f * scale };
+                value += *c;
             }
         }
-    }
-
-    /// The phase weighed with each technique's n·p multiplied by a factor, `factors` = (c_B,
-    /// c_L): w_t = h(c_t n_t p_t, c_o n_o p_o), e.g. variance-aware weights (factors 1: the
-    /// heuristic itself, bit for bit). Contributions and their sum as [`Weighting::weigh`].
-    pub fn weigh_scaled(&self, phase: &Phase, contributions: &mut [Rgb], factors: [f32; 2]) -> Rgb {
-        let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
-        let (k_b, k_l) = (factors[0] * n_b, factors[1] * n_l);
-        let (bsdf, light) = contributions.split_at_mut(phase.split.n_bsdf as usize);
-        // Black records keep the zero their contribution starts with (adding it to the sum
-        // would change no bit).
-        let mut value = Rgb::ZERO;
-        self.weigh_technique(
-            phase.bsdf_records(),
-            (k_b, k_l),
-            n_b,
-            |r| (r.p_bsdf, r.p_light),
-            bsdf,
-            &mut value,
-        );
-        self.weigh_technique(
-            phase.light_records(),
-            (k_l, k_b),
-            n_l,
-            |r| (r.p_light, r.p_bsdf),
-            light,
-            &mut value,
-        );
         value
     }
 }
@@ -183,6 +187,7 @@ mod tests {
     use super::*;
     use crate::allocation::SampleSplit;
     use crate::balance::Balance;
+    use crate::estimator::SampleRecord;
     use lumis_core::sampler::Sampler;
 
     /// Random records of both techniques, some black, one Dirac (a BSDF sample).
