@@ -104,7 +104,8 @@ impl SecondOrderMoments {
     pub fn add(&mut self, f: f32, p_bsdf: f32, p_light: f32) {
         let (f, p_b, p_l) = (f as f64, p_bsdf as f64, p_light as f64);
         let p_bar = 0.5 * (p_b + p_l);
-        if f == 0.0 || p_bar.is_nan() || p_bar <= 0.0 || !p_bar.is_finite() {
+        // p̄ positive and finite in two comparisons (NaN fails both).
+        if f == 0.0 || !(p_bar > 0.0 && p_bar < f64::INFINITY) {
             return;
         }
         let delta_p = 0.5 * (p_b - p_l);

@@ -62,76 +62,59 @@ pub trait Heuristic: Send + Sync {
 /// record's f is already divided by the Dirac density).
 pub struct PerSample<H>(pub H);
 
-/// What a record's weight needs of its technique: the heuristic compares `k_own` · p_own with
-/// `k_other` · p_other, and the record contributes w f / (n_own p_own).
-#[derive(Clone, Copy)]
-struct Technique {
-    k_own: f32,
-    k_other: f32,
-    n_own: f32,
-    /// k_own / n_own: w / (n p) = (w / (k p)) · (k / n), exactly w / (k p) when k = n.
-    own_factor: f32,
-}
-
-impl Technique {
-    fn new(k_own: f32, k_other: f32, n_own: f32) -> Self {
-        Technique {
-            k_own,
-            k_other,
-            n_own,
-            own_factor: k_own / n_own,
-        }
-    }
-}
-
 impl<H: Heuristic> PerSample<H> {
     /// The phase weighed with each technique's n·p multiplied by a factor, `factors` = (c_B,
     /// c_L): w_t = h(c_t n_t p_t, c_o n_o p_o), e.g. variance-aware weights (factors 1: the
     /// heuristic itself, bit for bit). Contributions and their sum as [`Weighting::weigh`].
     ///
     /// Weights are computed four records at a time over the whole phase, BSDF records then
-    /// light records, each lane with its own technique's factors: a phase of a few samples
-    /// (two, in the race scenes) fills one vector rather than one per technique, which halves
-    /// the divisions the pass is bound by. Each lane computes what it would in a vector of its
+    /// light records, each lane taking its technique's products: a phase of a few samples (two,
+    /// in the race scenes) fills one vector rather than one per technique, which halves the
+    /// divisions the pass is bound by. Each lane computes what it would in a vector of its
     /// technique alone, and the records are added in order, so the estimate is the same.
     pub fn weigh_scaled(&self, phase: &Phase, contributions: &mut [Rgb], factors: [f32; 2]) -> Rgb {
         let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
         let (k_b, k_l) = (factors[0] * n_b, factors[1] * n_l);
-        let bsdf = Technique::new(k_b, k_l, n_b);
-        let light = Technique::new(k_l, k_b, n_l);
+        // w / (n p) = (w / (k p)) · (k / n): exactly w / (k p) when k = n.
+        let (bsdf_factor, light_factor) = (Vec4::splat(k_b / n_b), Vec4::splat(k_l / n_l));
         let n_bsdf = phase.split.n_bsdf as usize;
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
         let mut value = Rgb::ZERO;
         let chunks = phase.records.chunks(4).zip(contributions.chunks_mut(4));
         for (first, (chunk, out)) in (0..).step_by(4).zip(chunks) {
-            // Lanes past the end hold equal products, which weigh ½ and are not used.
-            let (mut mine, mut other, mut own_factor) = ([1.0f32; 4], [1.0f32; 4], [1.0f32; 4]);
-            let mut techniques = [bsdf; 4];
+            // Lanes past the end are not used.
+            let (mut p_bsdf, mut p_light) = ([1.0f32; 4], [1.0f32; 4]);
             for (i, r) in chunk.iter().enumerate() {
-                let (t, p_own, p_other) = if first + i < n_bsdf {
-                    (bsdf, r.p_bsdf, r.p_light)
-                } else {
-                    (light, r.p_light, r.p_bsdf)
-                };
-                (mine[i], other[i]) = (t.k_own * p_own, t.k_other * p_other);
-                own_factor[i] = t.own_factor;
-                techniques[i] = t;
+                (p_bsdf[i], p_light[i]) = (r.p_bsdf, r.p_light);
             }
-            let (mine, other) = (Vec4::from_array(mine), Vec4::from_array(other));
+            // n·p of each technique: a BSDF record's own product is `bsdf`, its other
+            // `light`, and the reverse for a light record.
+            let bsdf = Vec4::from_array(p_bsdf) * k_b;
+            let light = Vec4::from_array(p_light) * k_l;
+            let is_bsdf = Vec4::new(0.0, 1.0, 2.0, 3.0)
+                .cmplt(Vec4::splat(n_bsdf.saturating_sub(first) as f32));
+            let mine = Vec4::select(is_bsdf, bsdf, light);
+            let other = Vec4::select(is_bsdf, light, bsdf);
             let w = Vec4::select(
                 mine.cmpeq(other),
                 Vec4::splat(0.5),
                 self.0.weight4(mine, other),
             );
             // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
-            let scale = (w / mine * Vec4::from_array(own_factor)).to_array();
-            let lanes = chunk.iter().zip(out).zip(scale).zip(techniques);
-            for (((r, c), scale), t) in lanes {
+            let own_factor = Vec4::select(is_bsdf, bsdf_factor, light_factor);
+            let scale = (w / mine * own_factor).to_array();
+            for (i, ((r, c), scale)) in chunk.iter().zip(out).zip(scale).enumerate() {
                 if r.is_black() {
                     continue;
                 }
-                *c = if r.delta { r.f / t.n_own } else { r.f * scale };
+                *c = if !r.delta {
+                    r.f * scale
+                } else if first + i < n_bsdf {
+                    r.f / n_b
+                } else {
+                    r.f / n_l
+                };
                 value += *c;
             }
         }
