@@ -1,7 +1,8 @@
 //! The perspective pinhole camera.
 
 use crate::accel::Ray;
-use glam::{Vec2, Vec3};
+use crate::math::lanes::{Lanes, V3};
+use glam::{Vec2, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct Camera {
@@ -69,10 +70,31 @@ impl Camera {
 
     /// The primary ray through film position `film` (pixels; x right, y down).
     pub fn generate_ray(&self, film: Vec2) -> Ray {
+        self.ray_along(self.directions(film.x, film.y).lane(0))
+    }
+
+    /// The primary rays through film positions `film[i]`, four at a time: each the ray
+    /// [`generate_ray`](Self::generate_ray) gives, bit for bit.
+    pub fn generate_rays(&self, film: [Vec2; 4]) -> [Ray; 4] {
+        let directions = self.directions(
+            Vec4::from_array(film.map(|f| f.x)),
+            Vec4::from_array(film.map(|f| f.y)),
+        );
+        std::array::from_fn(|i| self.ray_along(directions.lane(i)))
+    }
+
+    /// The unit directions through film positions (`x`, `y`), one formula for one lane or four.
+    #[inline(always)]
+    fn directions<L: Lanes>(&self, x: L, y: L) -> V3<L> {
         let aspect = self.width / self.height;
-        let x = (2.0 * film.x / self.width - 1.0) * self.tan_half_fov * aspect;
-        let y = (1.0 - 2.0 * film.y / self.height) * self.tan_half_fov;
-        let direction = (self.forward + x * self.right + y * self.up).normalize();
+        let (two, one) = (L::splat(2.0), L::splat(1.0));
+        let tan_half_fov = L::splat(self.tan_half_fov);
+        let x = (two * x / L::splat(self.width) - one) * tan_half_fov * L::splat(aspect);
+        let y = (one - two * y / L::splat(self.height)) * tan_half_fov;
+        (V3::splat(self.forward) + V3::splat(self.right) * x + V3::splat(self.up) * y).normalize()
+    }
+
+    fn ray_along(&self, direction: Vec3) -> Ray {
         Ray {
             origin: self.position,
             direction,
@@ -96,6 +118,39 @@ mod tests {
         // Vertical fov 90: the top edge ray is 45 degrees up.
         let top = c.generate_ray(Vec2::new(100.0, 0.0)).direction;
         assert!((top.y - top.z).abs() < 1e-6 && top.y > 0.0);
+    }
+
+    /// Four rays at once are the rays one at a time, bit for bit, and those are glam's `Vec3`
+    /// formula (what the camera computed before it had a lane form).
+    #[test]
+    fn rays_by_fours_are_the_rays_one_by_one() {
+        let c = Camera::new(
+            Vec3::new(0.3, 2.0, 15.0),
+            Vec3::new(0.0, -1.5, 2.5),
+            Vec3::Y,
+            28.0,
+            320,
+            240,
+        )
+        .unwrap();
+        let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
+        for _ in 0..2000 {
+            let film: [Vec2; 4] =
+                std::array::from_fn(|_| sampler.next_2d() * Vec2::new(330.0, 250.0) - 5.0);
+            let rays = c.generate_rays(film);
+            for (f, ray) in film.into_iter().zip(rays) {
+                let one = c.generate_ray(f);
+                let aspect = c.width / c.height;
+                let x = (2.0 * f.x / c.width - 1.0) * c.tan_half_fov * aspect;
+                let y = (1.0 - 2.0 * f.y / c.height) * c.tan_half_fov;
+                let glam = (c.forward + x * c.right + y * c.up).normalize();
+                for axis in 0..3 {
+                    assert_eq!(ray.direction[axis].to_bits(), one.direction[axis].to_bits());
+                    assert_eq!(one.direction[axis].to_bits(), glam[axis].to_bits(), "{f}");
+                }
+                assert_eq!((ray.origin, ray.t_max), (c.position, f32::INFINITY));
+            }
+        }
     }
 
     #[test]

@@ -34,6 +34,46 @@ impl CameraSample {
     /// Camera sample `index` of `pixel`: its stream and its ray through the pixel, jittered
     /// when the scene asks for it, through the pixel's centre otherwise.
     pub fn new(scene: &Scene, pixel: UVec2, index: u32) -> Self {
+        let (sampler, film) = Self::stream(scene, pixel, index);
+        CameraSample {
+            pixel,
+            index,
+            sampler,
+            ray: scene.camera.generate_ray(film),
+            traced: None,
+        }
+    }
+
+    /// Camera samples `indices` of `pixel`, each as [`new`](Self::new) makes it, appended to
+    /// `samples`: their rays are computed four at a time (a camera ray's divisions and square
+    /// root were 6 % of the Cornell box's instructions).
+    pub fn extend_pixel(
+        scene: &Scene,
+        pixel: UVec2,
+        indices: std::ops::Range<u32>,
+        samples: &mut Vec<CameraSample>,
+    ) {
+        for first in indices.clone().step_by(4) {
+            let count = (indices.end - first).min(4) as usize;
+            // Lanes past the last sample repeat it, and are dropped.
+            let streams: [(Sampler, Vec2); 4] = std::array::from_fn(|lane| {
+                Self::stream(scene, pixel, first + lane.min(count - 1) as u32)
+            });
+            let rays = scene.camera.generate_rays(streams.each_ref().map(|s| s.1));
+            let lanes = streams.into_iter().zip(rays).zip(first..).take(count);
+            samples.extend(lanes.map(|(((sampler, _), ray), index)| CameraSample {
+                pixel,
+                index,
+                sampler,
+                ray,
+                traced: None,
+            }));
+        }
+    }
+
+    /// Camera sample `index` of `pixel`: its stream, and its film position, jittered when the
+    /// scene asks for it, the pixel's centre otherwise.
+    fn stream(scene: &Scene, pixel: UVec2, index: u32) -> (Sampler, Vec2) {
         let pixel_index = pixel.y as u64 * scene.width as u64 + pixel.x as u64;
         let mut sampler = Sampler::new(scene.seed, pixel_index, index as u64);
         // Drawn either way, so that the rest of the stream does not depend on the jitter.
@@ -44,13 +84,7 @@ impl CameraSample {
             } else {
                 Vec2::splat(0.5)
             };
-        CameraSample {
-            pixel,
-            index,
-            sampler,
-            ray: scene.camera.generate_ray(film),
-            traced: None,
-        }
+        (sampler, film)
     }
 
     /// The primary ray's closest intersection: the one [`CameraSample::trace_together`] found,

@@ -457,7 +457,7 @@ impl TileSums {
                     }
                     let last = (first + PACKET_SIZE as u32).min(scene.spp);
                     batch.clear();
-                    batch.extend((first..last).map(|s| CameraSample::new(scene, pixel, s)));
+                    CameraSample::extend_pixel(scene, pixel, first..last, &mut batch);
                     CameraSample::trace_together(scene, &mut batch);
                     let radiance = &mut radiance[..batch.len()];
                     integrator.shade_together(scene, &mut batch, sums, radiance);
