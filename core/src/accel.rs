@@ -8,7 +8,7 @@
 
 use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use crate::math::{gamma, next_float_down, next_float_up};
-use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal};
+use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal_a};
 use crate::wide_bvh::{PacketBoxTest, RayBoxTest, WideBvh, sphere_box};
 use glam::{Vec3, Vec3A, Vec4};
 use obvhs::Boundable;
@@ -741,21 +741,25 @@ impl Geometry {
         match self.primitives[hit.slot as usize] {
             Primitive::Triangle { p, shape, index } => {
                 let [b0, b1, b2] = hit.barycentrics;
-                let position = b0 * p[0] + b1 * p[1] + b2 * p[2];
-                let error = gamma(7) * ((b0 * p[0]).abs() + (b1 * p[1]).abs() + (b2 * p[2]).abs());
-                let geometric_normal = unit_normal((p[1] - p[0]).cross(p[2] - p[0]));
+                // In SIMD lanes (Vec3A): the same operations per coordinate, rounded alike.
+                let [p0, p1, p2] = p.map(Vec3A::from);
+                let (q0, q1, q2) = (b0 * p0, b1 * p1, b2 * p2);
+                let position = Vec3::from(q0 + q1 + q2);
+                let error = Vec3::from(gamma(7) * (q0.abs() + q1.abs() + q2.abs()));
+                let geometric_normal = unit_normal_a((p1 - p0).cross(p2 - p0));
                 let mut shading_normal = geometric_normal;
                 if let ShapeGeometry::Mesh(mesh) = &self.shapes[shape as usize]
                     && let Some(normals) = &mesh.normals
                 {
                     let [i0, i1, i2] = mesh.indices[index as usize];
-                    let n = b0 * normals[i0 as usize]
-                        + b1 * normals[i1 as usize]
-                        + b2 * normals[i2 as usize];
+                    let normal = |i: u32| Vec3A::from(normals[i as usize]);
+                    let n = b0 * normal(i0) + b1 * normal(i1) + b2 * normal(i2);
                     if let Some(n) = n.try_normalize() {
                         shading_normal = if n.dot(geometric_normal) < 0.0 { -n } else { n };
                     }
                 }
+                let (geometric_normal, shading_normal) =
+                    (Vec3::from(geometric_normal), Vec3::from(shading_normal));
                 Intersection {
                     t,
                     position,
