@@ -81,19 +81,24 @@ impl<H: Heuristic> PerSample<H> {
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
         let mut value = Rgb::ZERO;
-        let chunks = phase.records.chunks(4).zip(contributions.chunks_mut(4));
-        for (first, (chunk, out)) in (0..).step_by(4).zip(chunks) {
+        // Index loops rather than zipped `chunks`, `step_by` and `enumerate` iterators, whose
+        // bookkeeping cost more than the arithmetic in a phase of two records.
+        let records = phase.records;
+        let mut first = 0;
+        while first < records.len() {
+            let count = (records.len() - first).min(4);
             // Lanes past the end are not used.
             let (mut p_bsdf, mut p_light) = ([1.0f32; 4], [1.0f32; 4]);
-            for (i, r) in chunk.iter().enumerate() {
+            for i in 0..count {
+                let r = &records[first + i];
                 (p_bsdf[i], p_light[i]) = (r.p_bsdf, r.p_light);
             }
             // n·p of each technique: a BSDF record's own product is `bsdf`, its other
             // `light`, and the reverse for a light record.
             let bsdf = Vec4::from_array(p_bsdf) * k_b;
             let light = Vec4::from_array(p_light) * k_l;
-            let is_bsdf = Vec4::new(0.0, 1.0, 2.0, 3.0)
-                .cmplt(Vec4::splat(n_bsdf.saturating_sub(first) as f32));
+            let bsdf_lanes = n_bsdf.saturating_sub(first) as f32;
+            let is_bsdf = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(bsdf_lanes));
             let mine = Vec4::select(is_bsdf, bsdf, light);
             let other = Vec4::select(is_bsdf, light, bsdf);
             let w = Vec4::select(
@@ -104,19 +109,22 @@ impl<H: Heuristic> PerSample<H> {
             // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
             let own_factor = Vec4::select(is_bsdf, bsdf_factor, light_factor);
             let scale = (w / mine * own_factor).to_array();
-            for (i, ((r, c), scale)) in chunk.iter().zip(out).zip(scale).enumerate() {
+            for i in 0..count {
+                let r = &records[first + i];
                 if r.is_black() {
                     continue;
                 }
-                *c = if !r.delta {
-                    r.f * scale
+                let c = if !r.delta {
+                    r.f * scale[i]
                 } else if first + i < n_bsdf {
                     r.f / n_b
                 } else {
                     r.f / n_l
                 };
-                value += *c;
+                contributions[first + i] = c;
+                value += c;
             }
+            first += count;
         }
         value
     }
