@@ -462,7 +462,8 @@ impl Allocation for FixedAlpha {
     /// too small to fill the batch kernels' lanes by themselves (fewer than four samples of a
     /// technique); larger phases are drawn point by point, each a batch of its own, which costs
     /// less than interleaving the points (N = 64 on the Veach scene, 7 rounds: together ran at
-    /// 0.905 [0.850, 0.964] of point by point's speed).
+    /// 0.905 [0.850, 0.964] of point by point's speed). Decided per packet, from the splits it
+    /// computes once for both uses.
     fn estimate_together<W: Weighting + ?Sized>(
         &self,
         samplings: &mut [Option<LightSampling>],
@@ -470,23 +471,22 @@ impl Allocation for FixedAlpha {
         estimates: &mut [LightEstimate],
     ) {
         let lanes = <Vec4 as Lanes>::WIDTH as u32;
-        let fills_lanes = |s: &LightSampling| {
-            let split = self.split(s);
-            split.n_bsdf >= lanes || split.n_light >= lanes
-        };
-        if samplings.iter().flatten().any(fills_lanes) {
-            return estimate_each(self, samplings, weighting, estimates);
-        }
         let chunks = samplings
             .chunks_mut(PACKET_SIZE)
             .zip(estimates.chunks_mut(PACKET_SIZE));
         for (samplings, estimates) in chunks {
             // Each split once: it asks the BSDF whether it is a Dirac lobe.
             let mut splits = [SampleSplit::new(0.0, 1); PACKET_SIZE];
+            let mut fills_lanes = false;
             for (split, sampling) in splits.iter_mut().zip(samplings.iter()) {
                 if let Some(sampling) = sampling {
                     *split = self.split(sampling);
+                    fills_lanes |= split.n_bsdf >= lanes || split.n_light >= lanes;
                 }
+            }
+            if fills_lanes {
+                estimate_each(self, samplings, weighting, estimates);
+                continue;
             }
             let splits = &splits[..samplings.len()];
             let mut values = [Rgb::ZERO; PACKET_SIZE];
