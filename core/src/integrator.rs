@@ -55,6 +55,10 @@ impl CameraSample {
     ) {
         for first in indices.clone().step_by(4) {
             let count = (indices.end - first).min(4) as usize;
+            if count == 1 {
+                samples.push(Self::new(scene, pixel, first));
+                continue;
+            }
             // Lanes past the last sample repeat it, and are dropped.
             let streams: [(Sampler, Vec2); 4] = std::array::from_fn(|lane| {
                 Self::stream(scene, pixel, first + lane.min(count - 1) as u32)

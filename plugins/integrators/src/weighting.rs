@@ -81,24 +81,22 @@ impl<H: Heuristic> PerSample<H> {
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
         let mut value = Rgb::ZERO;
-        // Index loops rather than zipped `chunks`, `step_by` and `enumerate` iterators, whose
-        // bookkeeping cost more than the arithmetic in a phase of two records.
-        let records = phase.records;
-        let mut first = 0;
-        while first < records.len() {
-            let count = (records.len() - first).min(4);
+        // `chunks` alone, the contributions sliced by index: zipped `chunks` and `step_by`
+        // iterators cost more to set up than the arithmetic of a phase of two records.
+        for (chunk_index, chunk) in phase.records.chunks(4).enumerate() {
+            let first = 4 * chunk_index;
+            let out = &mut contributions[first..first + chunk.len()];
             // Lanes past the end are not used.
             let (mut p_bsdf, mut p_light) = ([1.0f32; 4], [1.0f32; 4]);
-            for i in 0..count {
-                let r = &records[first + i];
+            for (i, r) in chunk.iter().enumerate() {
                 (p_bsdf[i], p_light[i]) = (r.p_bsdf, r.p_light);
             }
             // n·p of each technique: a BSDF record's own product is `bsdf`, its other
             // `light`, and the reverse for a light record.
             let bsdf = Vec4::from_array(p_bsdf) * k_b;
             let light = Vec4::from_array(p_light) * k_l;
-            let bsdf_lanes = n_bsdf.saturating_sub(first) as f32;
-            let is_bsdf = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(bsdf_lanes));
+            let bsdf_lanes = n_bsdf.saturating_sub(first);
+            let is_bsdf = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(bsdf_lanes as f32));
             let mine = Vec4::select(is_bsdf, bsdf, light);
             let other = Vec4::select(is_bsdf, light, bsdf);
             let w = Vec4::select(
@@ -109,22 +107,19 @@ impl<H: Heuristic> PerSample<H> {
             // w / (n p): the factor of f in the contribution (Dirac and black lanes unused).
             let own_factor = Vec4::select(is_bsdf, bsdf_factor, light_factor);
             let scale = (w / mine * own_factor).to_array();
-            for i in 0..count {
-                let r = &records[first + i];
+            for (i, ((r, c), scale)) in chunk.iter().zip(out).zip(scale).enumerate() {
                 if r.is_black() {
                     continue;
                 }
-                let c = if !r.delta {
-                    r.f * scale[i]
-                } else if first + i < n_bsdf {
+                *c = if !r.delta {
+                    r.f * scale
+                } else if i < bsdf_lanes {
                     r.f / n_b
                 } else {
                     r.f / n_l
                 };
-                contributions[first + i] = c;
-                value += c;
+                value += *c;
             }
-            first += count;
         }
         value
     }
