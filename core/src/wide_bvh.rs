@@ -480,28 +480,36 @@ impl PacketBoxTest {
         if rays.len() > PACKET_SIZE {
             return None;
         }
-        let last = rays[rays.len() - 1];
-        let mut packet = PacketBoxTest {
-            origin: first.origin,
-            inv_low: first.inv_direction,
-            inv_high: first.inv_direction,
-            inv: [0, 1, 2].map(|axis| {
-                std::array::from_fn(|r| rays.get(r).unwrap_or(&last).inv_direction[axis])
-            }),
-            near: first.near,
-            rays: rays.len(),
-        };
-        for ray in &rays[1..] {
+        // Lanes past the rays repeat the last one.
+        let mut inv = rays[rays.len() - 1].inv_direction.map(|v| [v; PACKET_SIZE]);
+        let (mut inv_low, mut inv_high) = (first.inv_direction, first.inv_direction);
+        for (r, ray) in rays.iter().enumerate() {
             if ray.near != first.near
                 || ray.origin.map(f32::to_bits) != first.origin.map(f32::to_bits)
             {
                 return None;
             }
             for axis in 0..3 {
-                packet.inv_low[axis] = packet.inv_low[axis].min(ray.inv_direction[axis]);
-                packet.inv_high[axis] = packet.inv_high[axis].max(ray.inv_direction[axis]);
+                let v = ray.inv_direction[axis];
+                inv[axis][r] = v;
+                // Comparisons rather than f32::min/max: a reciprocal here is never NaN
+                // (RayBoxTest::new), and these compile to single instructions.
+                inv_low[axis] = if v < inv_low[axis] { v } else { inv_low[axis] };
+                inv_high[axis] = if v > inv_high[axis] {
+                    v
+                } else {
+                    inv_high[axis]
+                };
             }
         }
+        let packet = PacketBoxTest {
+            origin: first.origin,
+            inv_low,
+            inv_high,
+            inv,
+            near: first.near,
+            rays: rays.len(),
+        };
         Some(packet)
     }
 }
