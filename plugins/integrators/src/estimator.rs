@@ -210,12 +210,13 @@ enum Reached {
 fn reaches_light(scene: &Scene, light: usize, light_shape: Option<u32>, ray: &Ray) -> Reached {
     let emitter = scene.emitters[light].as_ref();
     if scene.environment == Some(light) {
+        if scene.occluded(ray) {
+            return Reached::Nothing;
+        }
+        // Only for a ray that escapes: its lookup is deferred to the end of the phase, after
+        // the light samples, which leaves the read time to arrive.
         emitter.prefetch(ray.direction);
-        return if scene.occluded(ray) {
-            Reached::Nothing
-        } else {
-            Reached::Environment
-        };
+        return Reached::Environment;
     }
     let Some(shape) = light_shape else {
         return Reached::Nothing;
