@@ -45,8 +45,8 @@ impl CameraSample {
     }
 
     /// Camera samples `indices` of `pixel`, each as [`new`](Self::new) makes it, appended to
-    /// `samples`: their rays are computed four at a time (a camera ray's divisions and square
-    /// root were 6 % of the Cornell box's instructions).
+    /// `samples`: their rays are computed four at a time (`new`, one ray at a time, was 6 % of
+    /// the Cornell box's instructions, its divisions and square root the hottest).
     pub fn extend_pixel(
         scene: &Scene,
         pixel: UVec2,
@@ -55,6 +55,8 @@ impl CameraSample {
     ) {
         for first in indices.clone().step_by(4) {
             let count = (indices.end - first).min(4) as usize;
+            // A lone sample (one a pixel, or one left after the fours) would make four streams
+            // for one ray.
             if count == 1 {
                 samples.push(Self::new(scene, pixel, first));
                 continue;
