@@ -11,8 +11,8 @@ use lumis::integrator::CameraSample;
 use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
 use lumis::integrators::alpha::SecondOrderMoments;
 use lumis::integrators::balance::Balance;
-use lumis::integrators::estimator::ShadingPoint;
-use lumis::integrators::phase::{Observer, PhaseRole};
+use lumis::integrators::estimator::{SampleRecord, ShadingPoint};
+use lumis::integrators::phase::{Observer, Phase, PhaseRole};
 use lumis::integrators::weighting::PerSample;
 use lumis::math::Rgb;
 use lumis::sampler::Sampler;
@@ -545,7 +545,44 @@ fn alpha_estimator(c: &mut Criterion) {
     let mut moments = SecondOrderMoments::default();
     run("balance_with_alpha_terms", &mut moments);
     black_box(moments);
+    // The observer alone, on the four lights' phases of one camera sample, drawn once: the
+    // difference of the two runs above is lost in their run-to-run spread.
+    let mut recorded = RecordedPhases::default();
+    let mut sampler = Sampler::new(0, 0, 0);
+    for light in 0..scene.emitters.len() {
+        let mut sampling =
+            LightSampling::new(scene, &sp, light, pixel, 64, &mut sampler, &mut buffers);
+        sampling.phase(split, PhaseRole::ESTIMATE, &balance, &mut recorded);
+    }
+    group.bench_function("alpha_terms_alone", |b| {
+        b.iter(|| {
+            let mut moments = SecondOrderMoments::default();
+            for (records, contributions) in &recorded.phases {
+                let phase = Phase {
+                    pixel,
+                    light: 0,
+                    split,
+                    records,
+                };
+                moments.observe(black_box(&phase), contributions);
+            }
+            black_box(moments)
+        })
+    });
     group.finish();
+}
+
+/// Copies of the phases an observer is shown: their records and contributions.
+#[derive(Default)]
+struct RecordedPhases {
+    phases: Vec<(Vec<SampleRecord>, Vec<Rgb>)>,
+}
+
+impl Observer for RecordedPhases {
+    fn observe(&mut self, phase: &Phase, contributions: &[Rgb]) {
+        self.phases
+            .push((phase.records.to_vec(), contributions.to_vec()));
+    }
 }
 
 criterion_group!(
