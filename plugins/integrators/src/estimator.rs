@@ -33,6 +33,8 @@ pub struct ShadingPoint<'a> {
     pub bsdf: &'a dyn Bsdf,
     /// Where its shadow and BSDF rays start.
     pub origins: RayOrigins,
+    /// The rounding error of the point across its surface's plane, |n| · error.
+    plane_error: f32,
 }
 
 impl<'a> ShadingPoint<'a> {
@@ -46,6 +48,7 @@ impl<'a> ShadingPoint<'a> {
             wo: frame.to_local(wo_world),
             bsdf: scene.bsdf(&hit),
             origins: RayOrigins::new(&hit, wo_world),
+            plane_error: hit.geometric_normal.abs().dot(hit.error),
             hit,
         }
     }
@@ -79,10 +82,11 @@ impl<'a> ShadingPoint<'a> {
     /// nothing.
     fn reflects_toward_sample(&self, sample: &EmitterSample) -> bool {
         let height = self.normal.dot(sample.wi);
-        let undecided = sample.position.is_some_and(|p| {
-            height * (p - self.hit.position).length() <= self.normal.abs().dot(self.hit.error)
-        });
-        height > 0.0 && !undecided
+        // The distance (a square root) only where the sample is on the viewer's side.
+        height > 0.0
+            && !sample
+                .position
+                .is_some_and(|p| height * (p - self.hit.position).length() <= self.plane_error)
     }
 
     /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there.
