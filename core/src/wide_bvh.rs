@@ -248,9 +248,10 @@ impl WideBvh {
     }
 
     /// The closest primitive along each ray of `packet`: `t_max[r]` is ray `r`'s bound,
-    /// lowered to each hit accepted; `hit(r, i, t_max)` tests primitive `i` for ray `r` and
-    /// returns its distance if it is hit before `t_max`; `closest[r]` is the last primitive
-    /// accepted for ray `r`. The packet visits every node one of its rays would visit alone,
+    /// lowered to each hit accepted; `hit(i, rays, t_max)` tests primitive `i` for the rays whose
+    /// bits are set in `rays`, lowers `t_max[r]` of each that hits it before `t_max[r]` to the
+    /// distance, and returns their bits (a primitive against several rays at once: it can test
+    /// them in SIMD lanes); `closest[r]` is the last primitive accepted for ray `r`. The packet visits every node one of its rays would visit alone,
     /// and in each, every ray tests the leaves its own node test would let through: each ray
     /// tests the primitives its own traversal would test, perhaps more, in another order.
     #[inline]
@@ -259,7 +260,7 @@ impl WideBvh {
         packet: &PacketBoxTest,
         t_max: &mut [f32],
         closest: &mut [Option<usize>],
-        hit: impl FnMut(usize, usize, f32) -> Option<f32>,
+        hit: impl FnMut(usize, u32, &mut [f32; PACKET_SIZE]) -> u32,
     ) {
         closest.fill(None);
         if self.nodes.is_empty() {
@@ -638,7 +639,7 @@ fn closest_hit_packet_avx2(
     packet: &PacketBoxTest,
     t_max: &mut [f32],
     closest: &mut [Option<usize>],
-    hit: impl FnMut(usize, usize, f32) -> Option<f32>,
+    hit: impl FnMut(usize, u32, &mut [f32; PACKET_SIZE]) -> u32,
 ) {
     closest_hit_packet_kernel(
         nodes,
@@ -835,7 +836,7 @@ fn closest_hit_packet_kernel(
     packet: &PacketBoxTest,
     t_max: &mut [f32],
     closest: &mut [Option<usize>],
-    mut hit: impl FnMut(usize, usize, f32) -> Option<f32>,
+    mut hit: impl FnMut(usize, u32, &mut [f32; PACKET_SIZE]) -> u32,
     node_test: impl Fn(&WideNode, &PacketBoxTest, f32) -> (u32, [f32; 8]),
     rays_entering: impl Fn(&WideNode, usize, &PacketBoxTest, &[f32; PACKET_SIZE]) -> u32,
 ) {
@@ -879,14 +880,11 @@ fn closest_hit_packet_kernel(
                 leaves &= leaves - 1;
                 let first = (current.child[lane] & !LEAF) as usize;
                 for primitive in first..first + current.count[lane] as usize {
-                    let mut rays = entering[lane];
-                    while rays != 0 {
-                        let r = rays.trailing_zeros() as usize;
-                        rays &= rays - 1;
-                        if let Some(t) = hit(r, primitive, ray_t_max[r]) {
-                            ray_t_max[r] = t;
-                            closest[r] = Some(primitive);
-                        }
+                    let mut hits = hit(primitive, entering[lane], &mut ray_t_max);
+                    while hits != 0 {
+                        let r = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        closest[r] = Some(primitive);
                     }
                 }
             }
@@ -1242,6 +1240,17 @@ mod tests {
                 .collect();
             hits += alone.iter().flatten().count();
             let hit = |r: usize, i: usize, t: f32| box_entry(&rays[r], &leaf_boxes[i], t);
+            // The primitive against each of the rays, one by one.
+            let packet_hit = |i: usize, rays: u32, t_max: &mut [f32; PACKET_SIZE]| {
+                let mut hits = 0;
+                for r in (0..PACKET_SIZE).filter(|r| rays >> r & 1 != 0) {
+                    if let Some(t) = hit(r, i, t_max[r]) {
+                        t_max[r] = t;
+                        hits |= 1 << r;
+                    }
+                }
+                hits
+            };
             let mut closest = vec![None; rays.len()];
             let mut t_max = t_max0.clone();
             closest_hit_packet_kernel(
@@ -1249,7 +1258,7 @@ mod tests {
                 &packet,
                 &mut t_max,
                 &mut closest,
-                hit,
+                packet_hit,
                 packet_node_test,
                 rays_entering,
             );
@@ -1262,7 +1271,7 @@ mod tests {
             };
             assert_eq!(found(&closest), alone, "round {round}, portable kernel");
             let mut t_max = t_max0.clone();
-            bvh.closest_hit_packet(&packet, &mut t_max, &mut closest, hit);
+            bvh.closest_hit_packet(&packet, &mut t_max, &mut closest, packet_hit);
             assert_eq!(found(&closest), alone, "round {round}, dispatched kernel");
         }
         assert!(
