@@ -134,8 +134,7 @@ pub struct RayOrigins {
     position: Vec3,
     error: Vec3,
     geometric_normal: Vec3,
-    /// The origin for directions on the side of `side`, and whether that is the side where
-    /// w · n < 0.
+    /// The origin computed ahead, and whether its side is the one where w · n < 0.
     origin: Vec3,
     behind: bool,
 }
@@ -400,29 +399,14 @@ fn triangle_hits(
     barycentrics: &mut [[f32; 3]; PACKET_SIZE],
     alone: Alone,
 ) -> u32 {
-    match shear.kz {
-        0 => triangle_hits_permuted::<1, 2, 0>(p, origin, shear, rays, t_max, barycentrics, alone),
-        1 => triangle_hits_permuted::<2, 0, 1>(p, origin, shear, rays, t_max, barycentrics, alone),
-        _ => triangle_hits_permuted::<0, 1, 2>(p, origin, shear, rays, t_max, barycentrics, alone),
-    }
-}
-
-/// [`triangle_hits`] for the permutation (KX, KY, KZ); the lanes follow
-/// [`intersect_triangle_permuted`] line by line.
-#[inline(always)]
-fn triangle_hits_permuted<const KX: usize, const KY: usize, const KZ: usize>(
-    p: &[Vec3; 3],
-    origin: Vec3,
-    shear: &PacketShear,
-    rays: u32,
-    t_max: &mut [f32; PACKET_SIZE],
-    barycentrics: &mut [[f32; 3]; PACKET_SIZE],
-    alone: Alone,
-) -> u32 {
-    let permute = |v: Vec3| {
-        let a = v.to_array();
-        Vec3::new(a[KX], a[KY], a[KZ])
+    // The lanes follow `intersect_triangle_permuted` line by line. Its permutation is picked
+    // here at run time: once per triangle, not per ray.
+    let [kx, ky, kz] = match shear.kz {
+        0 => [1, 2, 0],
+        1 => [2, 0, 1],
+        _ => [0, 1, 2],
     };
+    let permute = |v: Vec3| Vec3::new(v[kx], v[ky], v[kz]);
     // The same for every ray: they share the origin.
     let [q0, q1, q2] = p.map(|v| permute(v - origin));
     let splat = Vec4::splat;

@@ -251,9 +251,10 @@ impl WideBvh {
     /// lowered to each hit accepted; `hit(i, rays, t_max)` tests primitive `i` for the rays whose
     /// bits are set in `rays`, lowers `t_max[r]` of each that hits it before `t_max[r]` to the
     /// distance, and returns their bits (a primitive against several rays at once: it can test
-    /// them in SIMD lanes); `closest[r]` is the last primitive accepted for ray `r`. The packet visits every node one of its rays would visit alone,
-    /// and in each, every ray tests the leaves its own node test would let through: each ray
-    /// tests the primitives its own traversal would test, perhaps more, in another order.
+    /// them in SIMD lanes); `closest[r]` is the last primitive accepted for ray `r`. The packet
+    /// visits every node one of its rays would visit alone, and in each, every ray tests the
+    /// leaves its own node test would let through: each ray tests the primitives its own
+    /// traversal would test, perhaps more, in another order.
     #[inline]
     pub fn closest_hit_packet(
         &self,
