@@ -100,84 +100,65 @@ impl Intersection {
     /// A ray leaving this point in direction `w`.
     #[inline]
     pub fn spawn_ray(&self, w: Vec3) -> Ray {
-        Ray {
-            origin: offset_ray_origin(self.position, self.error, self.geometric_normal, w),
-            direction: w,
-            t_max: f32::INFINITY,
-        }
+        RayOrigin::toward(self, w).ray(self, w)
     }
 
     /// A ray from this point to `target` that stops just short of it.
     #[inline]
     pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
-        let origin = offset_ray_origin(
-            self.position,
-            self.error,
-            self.geometric_normal,
-            target - self.position,
-        );
-        Ray {
-            origin,
-            direction: target - origin,
-            t_max: 1.0 - SHADOW_EPSILON,
-        }
+        RayOrigin::toward(self, target - self.position).ray_to(self, target)
     }
 }
 
-/// The origin [`offset_ray_origin`] gives on one side of an intersection, computed once for
-/// the rays that leave it on that side (at N samples per light, a shading point spawns 2N rays
-/// per light, nearly all on the viewer's side). Its rays are bit for bit
-/// [`Intersection::spawn_ray`]'s and [`Intersection::spawn_ray_to`]'s, which compute the offset
-/// for every ray; a ray leaving on the other side still does.
+/// The origin [`offset_ray_origin`] gives at an intersection for the directions on one side of
+/// its surface. [`Intersection::spawn_ray`] computes one per ray; a shading point computes one
+/// for the viewer's side and reuses it for all its shadow and BSDF rays (at N samples per
+/// light, 2N rays per light, nearly all on that side). A ray toward the other side computes its
+/// own, so every ray is the one `spawn_ray` or `spawn_ray_to` gives.
 #[derive(Clone, Copy, Debug)]
-pub struct RayOrigins {
-    position: Vec3,
-    error: Vec3,
-    geometric_normal: Vec3,
-    /// The origin computed ahead, and whether its side is the one where w · n < 0.
-    origin: Vec3,
+pub struct RayOrigin {
+    point: Vec3,
+    /// Whether the side is the one where w · n < 0.
     behind: bool,
 }
 
-impl RayOrigins {
-    /// The origins of rays leaving `hit`, computed ahead for the side `side` points to.
+impl RayOrigin {
+    /// The origin of `hit`'s rays toward the side `side` points to.
     #[inline]
-    pub fn new(hit: &Intersection, side: Vec3) -> Self {
-        let (position, error, geometric_normal) = (hit.position, hit.error, hit.geometric_normal);
-        RayOrigins {
-            position,
-            error,
-            geometric_normal,
-            origin: offset_ray_origin(position, error, geometric_normal, side),
-            behind: side.dot(geometric_normal) < 0.0,
+    pub fn toward(hit: &Intersection, side: Vec3) -> Self {
+        let n = hit.geometric_normal;
+        RayOrigin {
+            point: offset_ray_origin(hit.position, hit.error, n, side),
+            behind: side.dot(n) < 0.0,
         }
     }
 
-    /// The origin [`offset_ray_origin`] gives for direction `w`: its side decided by the same
-    /// test.
+    /// The origin for direction `w`: this one if `w` is on its side (by `offset_ray_origin`'s
+    /// test), else computed for `w`.
     #[inline(always)]
-    fn origin(&self, w: Vec3) -> Vec3 {
-        if (w.dot(self.geometric_normal) < 0.0) == self.behind {
-            self.origin
+    fn for_direction(&self, hit: &Intersection, w: Vec3) -> Vec3 {
+        let n = hit.geometric_normal;
+        if (w.dot(n) < 0.0) == self.behind {
+            self.point
         } else {
-            offset_ray_origin(self.position, self.error, self.geometric_normal, w)
+            offset_ray_origin(hit.position, hit.error, n, w)
         }
     }
 
-    /// [`Intersection::spawn_ray`].
+    /// A ray leaving `hit` in direction `w`.
     #[inline]
-    pub fn spawn_ray(&self, w: Vec3) -> Ray {
+    pub fn ray(&self, hit: &Intersection, w: Vec3) -> Ray {
         Ray {
-            origin: self.origin(w),
+            origin: self.for_direction(hit, w),
             direction: w,
             t_max: f32::INFINITY,
         }
     }
 
-    /// [`Intersection::spawn_ray_to`].
+    /// A ray from `hit` to `target` that stops just short of it.
     #[inline]
-    pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
-        let origin = self.origin(target - self.position);
+    pub fn ray_to(&self, hit: &Intersection, target: Vec3) -> Ray {
+        let origin = self.for_direction(hit, target - hit.position);
         Ray {
             origin,
             direction: target - origin,
@@ -1309,11 +1290,12 @@ mod tests {
         );
     }
 
-    /// [`RayOrigins`] spawns the rays [`Intersection`] spawns, bit for bit: for points from
-    /// 10⁻³ to 10⁶, random and axis-aligned normals, and directions on either side, in the
-    /// tangent plane (w · n = 0), zero and NaN, whichever side the origin was computed for.
+    /// A [`RayOrigin`] computed ahead spawns the rays pbrt's formula gives, each ray's origin
+    /// offset toward its own direction, bit for bit: for points from 10⁻³ to 10⁶, random and
+    /// axis-aligned normals, and directions on either side, in the tangent plane (w · n = 0),
+    /// zero and NaN, whichever side the origin was computed for.
     #[test]
-    fn ray_origins_spawn_the_rays_of_the_intersection() {
+    fn an_origin_computed_ahead_spawns_each_rays_own() {
         let mut sampler = crate::sampler::Sampler::new(11, 0, 0);
         let unit = |sampler: &mut crate::sampler::Sampler| {
             let u = sampler.next_2d();
@@ -1347,18 +1329,33 @@ mod tests {
             };
             let w = unit(&mut sampler);
             let tangent = geometric_normal.any_orthonormal_vector();
-            let origins = RayOrigins::new(&hit, if i % 2 == 0 { w } else { -w });
+            let ahead = RayOrigin::toward(&hit, if i % 2 == 0 { w } else { -w });
+            let offset =
+                |w: Vec3| offset_ray_origin(hit.position, hit.error, hit.geometric_normal, w);
             for w in [w, -w, tangent, -tangent, Vec3::ZERO, Vec3::NAN] {
-                assert_eq!(
-                    bits(origins.spawn_ray(w)),
-                    bits(hit.spawn_ray(w)),
-                    "{hit:?} {w}"
-                );
+                let expected = Ray {
+                    origin: offset(w),
+                    direction: w,
+                    t_max: f32::INFINITY,
+                };
+                assert_eq!(bits(ahead.ray(&hit, w)), bits(expected), "{hit:?} {w}");
+                assert_eq!(bits(hit.spawn_ray(w)), bits(expected), "{hit:?} {w}");
                 let target = hit.position + w * scale * sampler.next_1d();
+                let origin = offset(target - hit.position);
+                let expected = Ray {
+                    origin,
+                    direction: target - origin,
+                    t_max: 1.0 - SHADOW_EPSILON,
+                };
                 assert_eq!(
-                    bits(origins.spawn_ray_to(target)),
+                    bits(ahead.ray_to(&hit, target)),
+                    bits(expected),
+                    "to {target}"
+                );
+                assert_eq!(
                     bits(hit.spawn_ray_to(target)),
-                    "{hit:?} to {target}"
+                    bits(expected),
+                    "to {target}"
                 );
             }
         }

@@ -13,7 +13,7 @@
 //! allocation per sample), so that a method weighs and observes them as plain slices.
 
 use glam::{Vec2, Vec3};
-use lumis_core::accel::{FirstHit, Intersection, Ray, RayOrigins};
+use lumis_core::accel::{FirstHit, Intersection, Ray, RayOrigin};
 use lumis_core::bsdf::{Bsdf, BsdfSample};
 use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::math::{Frame, Rgb};
@@ -31,8 +31,8 @@ pub struct ShadingPoint<'a> {
     /// ωo in the local shading frame.
     pub wo: Vec3,
     pub bsdf: &'a dyn Bsdf,
-    /// Where its shadow and BSDF rays start.
-    pub origins: RayOrigins,
+    /// Where its shadow and BSDF rays start (those on the viewer's side).
+    pub origin: RayOrigin,
     /// The rounding error of the point across its surface's plane, |n| · error.
     plane_error: f32,
 }
@@ -47,7 +47,7 @@ impl<'a> ShadingPoint<'a> {
             normal: sign * hit.geometric_normal,
             wo: frame.to_local(wo_world),
             bsdf: scene.bsdf(&hit),
-            origins: RayOrigins::new(&hit, wo_world),
+            origin: RayOrigin::toward(&hit, wo_world),
             plane_error: hit.geometric_normal.abs().dot(hit.error),
             hit,
         }
@@ -70,8 +70,8 @@ impl<'a> ShadingPoint<'a> {
     /// infinity.
     fn sees(&self, scene: &Scene, light: usize, sample: &EmitterSample) -> bool {
         let ray = match sample.position {
-            Some(target) => self.origins.spawn_ray_to(target),
-            None => self.origins.spawn_ray(sample.wi),
+            Some(target) => self.origin.ray_to(&self.hit, target),
+            None => self.origin.ray(&self.hit, sample.wi),
         };
         !scene.occluded_toward_light(&ray, light)
     }
@@ -539,7 +539,7 @@ impl<'a> BsdfRecords<'a> {
             ..SampleRecord::default()
         };
         let wi = sp.frame.to_world(s.wi);
-        let ray = sp.origins.spawn_ray(wi);
+        let ray = sp.origin.ray(&sp.hit, wi);
         // A black sample's light density, when asked for (a Dirac sample has none to match).
         let black = || {
             if densities == Densities::Both && !s.delta {
