@@ -15,6 +15,7 @@ use lumis::integrators::estimator::{SampleRecord, ShadingPoint};
 use lumis::integrators::phase::{Observer, Phase, PhaseRole};
 use lumis::integrators::weighting::PerSample;
 use lumis::math::Rgb;
+use lumis::math::lanes::{MAX_WIDTH, limit_width};
 use lumis::sampler::Sampler;
 use lumis::scene::shapes::{Mesh, ShapeGeometry};
 use std::hint::black_box;
@@ -27,6 +28,9 @@ use std::time::Duration;
 const BATCH: usize = 4096;
 /// Samples drawn at one shading point in the batch benchmarks (N = 64, half per technique).
 const POINT_SAMPLES: usize = 32;
+/// The batch kernels at the widest lanes the processor has (eight with AVX2), and at four: the
+/// same results, so the ratio is what the wider lanes buy.
+const LANE_WIDTHS: [(&str, usize); 2] = [("", MAX_WIDTH), ("_four_lanes", 4)];
 
 fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
@@ -303,16 +307,20 @@ fn bsdfs(c: &mut Criterion) {
         let directions: Vec<Vec3> = inputs.iter().map(|&(_, wi, _, _)| wi).collect();
         let mut samples = vec![None; POINT_SAMPLES];
         let mut wos = vec![Vec3::Z; POINT_SAMPLES];
-        group.bench_function(format!("{name}_sample_batch"), |b| {
-            b.iter(|| {
-                for (wo, chunk) in at_points().zip(numbers.chunks(POINT_SAMPLES)) {
-                    wos.fill(wo.0);
-                    let n = chunk.len();
-                    model.sample_batch(&wos[..n], chunk, &mut samples[..n]);
-                    black_box(&samples);
-                }
-            })
-        });
+        for (lanes, width) in LANE_WIDTHS {
+            limit_width(width);
+            group.bench_function(format!("{name}_sample_batch{lanes}"), |b| {
+                b.iter(|| {
+                    for (wo, chunk) in at_points().zip(numbers.chunks(POINT_SAMPLES)) {
+                        wos.fill(wo.0);
+                        let n = chunk.len();
+                        model.sample_batch(&wos[..n], chunk, &mut samples[..n]);
+                        black_box(&samples);
+                    }
+                })
+            });
+        }
+        limit_width(MAX_WIDTH);
         group.bench_function(format!("{name}_eval_pdf_at_points"), |b| {
             b.iter(|| {
                 for (wo, chunk) in at_points() {
@@ -323,16 +331,20 @@ fn bsdfs(c: &mut Criterion) {
             })
         });
         let mut values = vec![(Rgb::ZERO, 0.0); POINT_SAMPLES];
-        group.bench_function(format!("{name}_eval_pdf_batch"), |b| {
-            b.iter(|| {
-                for (wo, chunk) in at_points().zip(directions.chunks(POINT_SAMPLES)) {
-                    wos.fill(wo.0);
-                    let n = chunk.len();
-                    model.eval_pdf_batch(&wos[..n], chunk, &mut values[..n]);
-                    black_box(&values);
-                }
-            })
-        });
+        for (lanes, width) in LANE_WIDTHS {
+            limit_width(width);
+            group.bench_function(format!("{name}_eval_pdf_batch{lanes}"), |b| {
+                b.iter(|| {
+                    for (wo, chunk) in at_points().zip(directions.chunks(POINT_SAMPLES)) {
+                        wos.fill(wo.0);
+                        let n = chunk.len();
+                        model.eval_pdf_batch(&wos[..n], chunk, &mut values[..n]);
+                        black_box(&values);
+                    }
+                })
+            });
+        }
+        limit_width(MAX_WIDTH);
     }
     group.finish();
 }
@@ -378,15 +390,19 @@ fn area_lights(c: &mut Criterion) {
             })
         });
         let mut samples = vec![None; POINT_SAMPLES];
-        group.bench_function(format!("{name}_sample_direction_batch"), |b| {
-            b.iter(|| {
-                for (point, us) in points.iter().zip(us.chunks(POINT_SAMPLES)) {
-                    let references = [*point; POINT_SAMPLES];
-                    emitter.sample_direction_batch(&references, us, &mut samples);
-                    black_box(&samples);
-                }
-            })
-        });
+        for (lanes, width) in LANE_WIDTHS {
+            limit_width(width);
+            group.bench_function(format!("{name}_sample_direction_batch{lanes}"), |b| {
+                b.iter(|| {
+                    for (point, us) in points.iter().zip(us.chunks(POINT_SAMPLES)) {
+                        let references = [*point; POINT_SAMPLES];
+                        emitter.sample_direction_batch(&references, us, &mut samples);
+                        black_box(&samples);
+                    }
+                })
+            });
+        }
+        limit_width(MAX_WIDTH);
     }
     group.finish();
 }
@@ -458,15 +474,19 @@ fn envmap(c: &mut Criterion) {
         });
         // In batches of POINT_SAMPLES, as a shading point's light samples are drawn.
         let mut samples = vec![None; POINT_SAMPLES];
-        group.bench_function("sample_direction_batch", |b| {
-            b.iter(|| {
-                for us in us.chunks(POINT_SAMPLES) {
-                    let out = &mut samples[..us.len()];
-                    map.sample_direction_batch(std::slice::from_ref(&reference), us, out);
-                    black_box(&out);
-                }
-            })
-        });
+        for (lanes, width) in LANE_WIDTHS {
+            limit_width(width);
+            group.bench_function(format!("sample_direction_batch{lanes}"), |b| {
+                b.iter(|| {
+                    for us in us.chunks(POINT_SAMPLES) {
+                        let out = &mut samples[..us.len()];
+                        map.sample_direction_batch(std::slice::from_ref(&reference), us, out);
+                        black_box(&out);
+                    }
+                })
+            });
+        }
+        limit_width(MAX_WIDTH);
         group.bench_function("pdf_direction", |b| {
             b.iter(|| {
                 for &d in directions {

@@ -2,8 +2,8 @@
 //! `wo` points toward the viewer, `wi` toward the light; both are unit vectors.
 
 use crate::math::Rgb;
-use crate::math::lanes::{Lanes, V3, by_fours, one_or_each};
-use glam::{Vec2, Vec3, Vec4};
+use crate::math::lanes::{LaneKernel, Lanes, V3, by_groups, one_or_each, with_widest_lanes};
+use glam::{Vec2, Vec3};
 
 /// Which kinds of lobes a BSDF has; integrators use it to skip work (e.g. light sampling is
 /// useless for a purely delta BSDF).
@@ -121,51 +121,96 @@ pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option
     BsdfSampleLanes::<f32>::from_pdf(true, V3::splat(wi), (V3::splat(value), pdf)).lane(0)
 }
 
-/// [`Bsdf::eval_pdf_batch`] for a BSDF whose `eval_pdf` is written over [`Lanes`]
-/// (`eval_pdf(wo, wi)`): four pairs at a time.
+/// A BSDF whose `eval_pdf` and `sample` are written over [`Lanes`], once for the scalar methods
+/// (`f32`) and the batch ones: [`eval_pdf_in_lanes`] and [`sample_in_lanes`] run them as its
+/// [`Bsdf::eval_pdf_batch`] and [`Bsdf::sample_batch`], as many lanes wide as the processor
+/// has.
+pub trait BsdfLanes {
+    /// `eval_pdf(wo, wi)` in each lane.
+    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L);
+    /// `sample(wo, u_lobe, (u0, u1))` in each lane.
+    fn sample_lanes<L: Lanes>(&self, wo: V3<L>, u_lobe: L, u: (L, L)) -> BsdfSampleLanes<L>;
+}
+
+/// [`Bsdf::eval_pdf_batch`] for a BSDF written over [`Lanes`]: four or eight pairs at a time
+/// ([`with_widest_lanes`]).
 #[inline(always)]
-pub fn eval_pdf_by_fours(
+pub fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
+    bsdf: &B,
     wo: &[Vec3],
     wi: &[Vec3],
     out: &mut [(Rgb, f32)],
-    eval_pdf: impl Fn(V3<Vec4>, V3<Vec4>) -> (V3<Vec4>, Vec4),
 ) {
     assert!(wi.len() == out.len(), "one result per direction");
     assert!(
         wo.len() == 1 || wo.len() == out.len(),
         "one ωo, or one per direction"
     );
-    by_fours(out, |k, out| {
-        let (value, pdf) = eval_pdf(V3::gather(wo, k, |wo| wo), V3::from_fn(|i| wi[k[i]]));
-        for (i, out) in out.iter_mut().enumerate() {
-            *out = (value.lane(i), pdf[i]);
+    struct EvalPdf<'a, B: ?Sized> {
+        bsdf: &'a B,
+        wo: &'a [Vec3],
+        wi: &'a [Vec3],
+        out: &'a mut [(Rgb, f32)],
+    }
+    impl<B: BsdfLanes + ?Sized> LaneKernel for EvalPdf<'_, B> {
+        type Output = ();
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) {
+            let EvalPdf { bsdf, wo, wi, out } = self;
+            by_groups::<W, _>(
+                out,
+                #[inline(always)]
+                |k, out| {
+                    let (value, pdf) = bsdf
+                        .eval_pdf_lanes::<L>(V3::gather(wo, k, |wo| wo), V3::from_fn(|i| wi[k[i]]));
+                    for (i, out) in out.iter_mut().enumerate() {
+                        *out = (value.lane(i), pdf.lane(i));
+                    }
+                },
+            );
         }
-    });
+    }
+    with_widest_lanes(EvalPdf { bsdf, wo, wi, out });
 }
 
-/// [`Bsdf::sample_batch`] for a BSDF whose `sample` is written over [`Lanes`]
-/// (`sample(wo, u_lobe, (u0, u1))`): four samples at a time.
+/// [`Bsdf::sample_batch`] for a BSDF written over [`Lanes`]: four or eight samples at a time
+/// ([`with_widest_lanes`]).
 #[inline(always)]
-pub fn sample_by_fours(
+pub fn sample_in_lanes<B: BsdfLanes + ?Sized>(
+    bsdf: &B,
     wo: &[Vec3],
     u: &[(f32, Vec2)],
     out: &mut [Option<BsdfSample>],
-    sample: impl Fn(V3<Vec4>, Vec4, (Vec4, Vec4)) -> BsdfSampleLanes<Vec4>,
 ) {
     assert!(u.len() == out.len(), "one result per sample");
     assert!(
         wo.len() == 1 || wo.len() == out.len(),
         "one ωo, or one per sample"
     );
-    by_fours(out, |k, out| {
-        let u_lobe = Vec4::from_fn(|i| u[k[i]].0);
-        let u2 = (
-            Vec4::from_fn(|i| u[k[i]].1.x),
-            Vec4::from_fn(|i| u[k[i]].1.y),
-        );
-        let samples = sample(V3::gather(wo, k, |wo| wo), u_lobe, u2);
-        for (i, out) in out.iter_mut().enumerate() {
-            *out = samples.lane(i);
+    struct Sample<'a, B: ?Sized> {
+        bsdf: &'a B,
+        wo: &'a [Vec3],
+        u: &'a [(f32, Vec2)],
+        out: &'a mut [Option<BsdfSample>],
+    }
+    impl<B: BsdfLanes + ?Sized> LaneKernel for Sample<'_, B> {
+        type Output = ();
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) {
+            let Sample { bsdf, wo, u, out } = self;
+            by_groups::<W, _>(
+                out,
+                #[inline(always)]
+                |k, out| {
+                    let u_lobe = L::from_fn(|i| u[k[i]].0);
+                    let u2 = (L::from_fn(|i| u[k[i]].1.x), L::from_fn(|i| u[k[i]].1.y));
+                    let samples = bsdf.sample_lanes(V3::gather(wo, k, |wo| wo), u_lobe, u2);
+                    for (i, out) in out.iter_mut().enumerate() {
+                        *out = samples.lane(i);
+                    }
+                },
+            );
         }
-    });
+    }
+    with_widest_lanes(Sample { bsdf, wo, u, out });
 }

@@ -1,9 +1,9 @@
 //! The emitter interface: light sources, sampled in solid angle from a reference point.
 
 use crate::math::Rgb;
-use crate::math::lanes::{Lanes, Mask, V3, by_fours, one_or_each};
+use crate::math::lanes::{LaneKernel, Lanes, Mask, V3, by_groups, one_or_each, with_widest_lanes};
 use crate::scene::shapes::ShapeGeometry;
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 
 /// The point being lit.
 #[derive(Clone, Copy, Debug)]
@@ -118,28 +118,67 @@ impl<L: Lanes> EmitterSampleLanes<L> {
     }
 }
 
-/// [`Emitter::sample_direction_batch`] for an emitter whose `sample_direction` is written over
-/// [`Lanes`] (`sample(reference, (u0, u1))`) and whose samples arrive with `radiance`: four
-/// samples at a time.
+/// An emitter whose `sample_direction` is written over [`Lanes`], once for the scalar method
+/// (`f32`) and the batch one: [`sample_direction_in_lanes`] runs it as its
+/// [`Emitter::sample_direction_batch`], as many lanes wide as the processor has.
+pub trait EmitterLanes {
+    /// `sample_direction(reference, (u0, u1))` in each lane.
+    fn sample_lanes<L: Lanes>(&self, reference: V3<L>, u: (L, L)) -> EmitterSampleLanes<L>;
+}
+
+/// [`Emitter::sample_direction_batch`] for an emitter written over [`Lanes`] whose samples
+/// arrive with `radiance`: four or eight samples at a time ([`with_widest_lanes`]).
 #[inline(always)]
-pub fn sample_direction_by_fours(
+pub fn sample_direction_in_lanes<E: EmitterLanes + ?Sized>(
+    emitter: &E,
     reference: &[ReferencePoint],
     u: &[Vec2],
     out: &mut [Option<EmitterSample>],
     radiance: Rgb,
-    sample: impl Fn(V3<Vec4>, (Vec4, Vec4)) -> EmitterSampleLanes<Vec4>,
 ) {
     assert!(u.len() == out.len(), "one result per sample");
     assert!(
         reference.len() == 1 || reference.len() == out.len(),
         "one reference point, or one per sample"
     );
-    by_fours(out, |k, out| {
-        let u2 = (Vec4::from_fn(|i| u[k[i]].x), Vec4::from_fn(|i| u[k[i]].y));
-        let samples = sample(V3::gather(reference, k, |r| r.position), u2);
-        for (i, out) in out.iter_mut().enumerate() {
-            *out = samples.lane(i, radiance);
+    struct Sample<'a, E: ?Sized> {
+        emitter: &'a E,
+        reference: &'a [ReferencePoint],
+        u: &'a [Vec2],
+        out: &'a mut [Option<EmitterSample>],
+        radiance: Rgb,
+    }
+    impl<E: EmitterLanes + ?Sized> LaneKernel for Sample<'_, E> {
+        type Output = ();
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) {
+            let Sample {
+                emitter,
+                reference,
+                u,
+                out,
+                radiance,
+            } = self;
+            by_groups::<W, _>(
+                out,
+                #[inline(always)]
+                |k, out| {
+                    let u2 = (L::from_fn(|i| u[k[i]].x), L::from_fn(|i| u[k[i]].y));
+                    let samples =
+                        emitter.sample_lanes(V3::gather(reference, k, |r| r.position), u2);
+                    for (i, out) in out.iter_mut().enumerate() {
+                        *out = samples.lane(i, radiance);
+                    }
+                },
+            );
         }
+    }
+    with_widest_lanes(Sample {
+        emitter,
+        reference,
+        u,
+        out,
+        radiance,
     });
 }
 

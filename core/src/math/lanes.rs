@@ -1,8 +1,10 @@
-//! One formula for one sample or for four: the arithmetic a BSDF or a light needs, written once
-//! over [`Lanes`], which is `f32` (one sample) or glam's `Vec4` (four samples in one SSE2 or
-//! NEON register). A plugin's scalar method and its batch method then run the same operations
-//! in the same order, so that a sample comes out of the batch bit for bit as out of the scalar
-//! call: the batch path is fast, and every statistical test of the scalar path holds for it.
+//! One formula for one sample or for several: the arithmetic a BSDF or a light needs, written
+//! once over [`Lanes`], which is `f32` (one sample), glam's `Vec4` (four samples in one SSE2 or
+//! NEON register) or eight samples in one AVX register where the processor has AVX2 (a batch
+//! kernel written as a [`LaneKernel`] runs with the widest there is: [`with_widest_lanes`]). A
+//! plugin's scalar method and its batch method then run the same operations in the same order,
+//! so that a sample comes out of the batch bit for bit as out of the scalar call: the batch
+//! path is fast, and every statistical test of the scalar path holds for it.
 //!
 //! Branches become masks: a kernel computes both sides where lanes disagree and picks per lane
 //! with [`Lanes::select`]. Sine, cosine, arc tangent and arc cosine are polynomials in the same
@@ -10,6 +12,7 @@
 
 use glam::{BVec4A, Vec3, Vec4};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The lanes' comparison results.
 pub trait Mask: Copy + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output = Self> {
@@ -366,7 +369,7 @@ impl<L: Lanes> V3<L> {
     /// The vector whose lane `i` is `f(i)`.
     #[inline(always)]
     pub fn from_fn(mut f: impl FnMut(usize) -> Vec3) -> Self {
-        let mut lanes = [Vec3::ZERO; 4];
+        let mut lanes = [Vec3::ZERO; MAX_WIDTH];
         for (i, lane) in lanes.iter_mut().enumerate().take(L::WIDTH) {
             *lane = f(i);
         }
@@ -515,11 +518,15 @@ pub fn one_or_each<T: Copy>(values: &[T], k: usize) -> T {
     values[if values.len() == 1 { 0 } else { k }]
 }
 
-impl V3<Vec4> {
-    /// The lanes of a batch argument (see [`one_or_each`]) for the elements `k`, each value's
-    /// vector `vector(value)`: one vector in every lane, or each element's.
+impl<L: Lanes> V3<L> {
+    /// The lanes of a batch argument (see [`one_or_each`]) for the elements `k` (one per
+    /// lane), each value's vector `vector(value)`: one vector in every lane, or each element's.
     #[inline(always)]
-    pub fn gather<T: Copy>(values: &[T], k: [usize; 4], vector: impl Fn(T) -> Vec3) -> Self {
+    pub fn gather<T: Copy, const W: usize>(
+        values: &[T],
+        k: [usize; W],
+        vector: impl Fn(T) -> Vec3,
+    ) -> Self {
         if let [one] = values {
             V3::splat(vector(*one))
         } else {
@@ -528,15 +535,233 @@ impl V3<Vec4> {
     }
 }
 
-/// Runs `kernel` over the indices of `outputs` four at a time: each call gets four indices and
-/// writes the results of as many as there are left (up to four) into the outputs it is given. A
-/// last group of fewer than four repeats its last index in the lanes left, whose results are
-/// not written.
+/// Runs `kernel` over the indices of `outputs` `W` at a time: each call gets `W` indices and
+/// writes the results of as many as there are left (up to `W`) into the outputs it is given. A
+/// last group of fewer than `W` repeats its last index in the lanes left, whose results are not
+/// written.
 #[inline(always)]
-pub fn by_fours<O>(outputs: &mut [O], mut kernel: impl FnMut([usize; 4], &mut [O])) {
-    for (group, outputs) in outputs.chunks_mut(4).enumerate() {
+pub fn by_groups<const W: usize, O>(
+    outputs: &mut [O],
+    mut kernel: impl FnMut([usize; W], &mut [O]),
+) {
+    for (group, outputs) in outputs.chunks_mut(W).enumerate() {
         let last = outputs.len() - 1;
-        kernel(std::array::from_fn(|i| 4 * group + i.min(last)), outputs);
+        let mut indices = [0; W];
+        for (i, index) in indices.iter_mut().enumerate() {
+            *index = W * group + i.min(last);
+        }
+        kernel(indices, outputs);
+    }
+}
+
+/// [`by_groups`] of four, for a kernel over `Vec4`.
+#[inline(always)]
+pub fn by_fours<O>(outputs: &mut [O], kernel: impl FnMut([usize; 4], &mut [O])) {
+    by_groups::<4, O>(outputs, kernel)
+}
+
+/// The most lanes a [`Lanes`] type has.
+pub const MAX_WIDTH: usize = 8;
+
+/// A batch kernel written over [`Lanes`]: [`with_widest_lanes`] runs it with the widest lanes
+/// the processor has.
+pub trait LaneKernel {
+    type Output;
+    /// Runs with lanes `L`, `L::WIDTH` elements per group.
+    fn run<L: Lanes, const W: usize>(self) -> Self::Output;
+}
+
+static WIDTH_LIMIT: AtomicUsize = AtomicUsize::new(MAX_WIDTH);
+
+/// Limits the lanes [`with_widest_lanes`] runs kernels with to `width` (4 or more; 8 is used
+/// only where the processor has AVX2), for the whole process: to time one width against the
+/// other, or to test the narrower on a processor that has the wider. The results are the same.
+pub fn limit_width(width: usize) {
+    assert!(width >= 4, "kernels run at least four lanes wide");
+    WIDTH_LIMIT.store(width, Ordering::Relaxed);
+}
+
+/// Runs `kernel` eight lanes wide (AVX2 registers) where the processor has AVX2, four wide
+/// (`Vec4`: SSE2, or NEON) elsewhere. Each lane computes what an `f32` would, so the results
+/// are the same either way; only the time differs.
+#[inline(always)]
+pub fn with_widest_lanes<K: LaneKernel>(kernel: K) -> K::Output {
+    #[cfg(target_arch = "x86_64")]
+    if WIDTH_LIMIT.load(Ordering::Relaxed) >= 8 && std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2.
+        return unsafe { eight::run_avx2(kernel) };
+    }
+    kernel.run::<Vec4, 4>()
+}
+
+/// Eight lanes in an AVX register. The type is private to this module and its values are
+/// made only inside [`eight::run_avx2`], which runs only where the processor has AVX2: that is
+/// what makes its intrinsics safe to call. Every method is inlined into that function, so
+/// that the intrinsics are too.
+#[cfg(target_arch = "x86_64")]
+mod eight {
+    use super::{LaneKernel, Lanes, Mask};
+    use std::arch::x86_64::*;
+    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn run_avx2<K: LaneKernel>(kernel: K) -> K::Output {
+        kernel.run::<F32x8, 8>()
+    }
+
+    #[derive(Clone, Copy)]
+    pub(super) struct F32x8(__m256);
+
+    /// All bits set in a true lane, none in a false one, as AVX comparisons give them.
+    #[derive(Clone, Copy)]
+    pub(super) struct Mask8(__m256);
+
+    // SAFETY (every `unsafe` block below): an `F32x8` or a `Mask8` exists only inside
+    // `run_avx2`, so the processor has AVX2.
+
+    macro_rules! binary {
+        ($type:ident, $trait:ident, $method:ident, $intrinsic:ident) => {
+            impl $trait for $type {
+                type Output = Self;
+                #[inline(always)]
+                fn $method(self, rhs: Self) -> Self {
+                    $type(unsafe { $intrinsic(self.0, rhs.0) })
+                }
+            }
+        };
+    }
+    binary!(F32x8, Add, add, _mm256_add_ps);
+    binary!(F32x8, Sub, sub, _mm256_sub_ps);
+    binary!(F32x8, Mul, mul, _mm256_mul_ps);
+    binary!(F32x8, Div, div, _mm256_div_ps);
+    binary!(Mask8, BitAnd, bitand, _mm256_and_ps);
+    binary!(Mask8, BitOr, bitor, _mm256_or_ps);
+
+    impl Neg for F32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn neg(self) -> Self {
+            F32x8(unsafe { _mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)) })
+        }
+    }
+
+    impl Not for Mask8 {
+        type Output = Self;
+        #[inline(always)]
+        fn not(self) -> Self {
+            Mask8(unsafe { _mm256_xor_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(-1))) })
+        }
+    }
+
+    impl Mask8 {
+        #[inline(always)]
+        fn bits(self) -> u32 {
+            unsafe { _mm256_movemask_ps(self.0) as u32 }
+        }
+    }
+
+    impl Mask for Mask8 {
+        #[inline(always)]
+        fn any(self) -> bool {
+            self.bits() != 0
+        }
+        #[inline(always)]
+        fn all(self) -> bool {
+            self.bits() == 0xff
+        }
+        #[inline(always)]
+        fn lane(self, i: usize) -> bool {
+            self.bits() >> i & 1 != 0
+        }
+        #[inline(always)]
+        fn from_fn(mut f: impl FnMut(usize) -> bool) -> Self {
+            let mut lanes = [0i32; 8];
+            for (i, lane) in lanes.iter_mut().enumerate() {
+                *lane = -(f(i) as i32);
+            }
+            Mask8(unsafe { _mm256_castsi256_ps(_mm256_loadu_si256(lanes.as_ptr().cast())) })
+        }
+    }
+
+    impl F32x8 {
+        #[inline(always)]
+        fn compare<const PREDICATE: i32>(self, rhs: Self) -> Mask8 {
+            Mask8(unsafe { _mm256_cmp_ps::<PREDICATE>(self.0, rhs.0) })
+        }
+    }
+
+    impl Lanes for F32x8 {
+        type Mask = Mask8;
+        const WIDTH: usize = 8;
+
+        #[inline(always)]
+        fn splat(v: f32) -> Self {
+            F32x8(unsafe { _mm256_set1_ps(v) })
+        }
+        #[inline(always)]
+        fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
+            let mut lanes = [0.0f32; 8];
+            for (i, lane) in lanes.iter_mut().enumerate() {
+                *lane = f(i);
+            }
+            F32x8(unsafe { _mm256_loadu_ps(lanes.as_ptr()) })
+        }
+        #[inline(always)]
+        fn lane(self, i: usize) -> f32 {
+            let mut lanes = [0.0f32; 8];
+            unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), self.0) };
+            lanes[i]
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            F32x8(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn floor(self) -> Self {
+            // `f32`'s floor (glam's SSE2 one) is the true floor but for −0, which it makes +0,
+            // as adding +0 does.
+            let floor =
+                unsafe { _mm256_round_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(self.0) };
+            F32x8(unsafe { _mm256_add_ps(floor, _mm256_setzero_ps()) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            F32x8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn copysign(self, sign: Self) -> Self {
+            unsafe {
+                let sign_bit = _mm256_set1_ps(-0.0);
+                F32x8(_mm256_or_ps(
+                    _mm256_andnot_ps(sign_bit, self.0),
+                    _mm256_and_ps(sign_bit, sign.0),
+                ))
+            }
+        }
+        #[inline(always)]
+        fn lt(self, rhs: Self) -> Mask8 {
+            self.compare::<_CMP_LT_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn le(self, rhs: Self) -> Mask8 {
+            self.compare::<_CMP_LE_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn gt(self, rhs: Self) -> Mask8 {
+            self.compare::<_CMP_GT_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn eq(self, rhs: Self) -> Mask8 {
+            self.compare::<_CMP_EQ_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn is_finite(self) -> Mask8 {
+            self.abs().lt(Self::splat(f32::INFINITY))
+        }
+        #[inline(always)]
+        fn select(mask: Mask8, if_true: Self, if_false: Self) -> Self {
+            F32x8(unsafe { _mm256_blendv_ps(if_false.0, if_true.0, mask.0) })
+        }
     }
 }
 
@@ -560,61 +785,94 @@ mod tests {
         -1.0e5,
     ];
 
-    /// An operation on four lanes, and the same on one.
-    type VectorOp = fn(Vec4, Vec4) -> Vec4;
-    type ScalarOp = fn(f32, f32) -> f32;
-
     fn same(a: f32, b: f32) -> bool {
         a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
     }
 
-    /// Every operation gives in each lane of a `Vec4` what it gives on an `f32`.
-    #[test]
-    fn four_lanes_compute_as_one() {
-        for &a in &VALUES {
-            for &b in &VALUES {
-                let (a4, b4) = (Vec4::new(a, b, a, b), Vec4::new(b, a, b, a));
-                let ops: [(VectorOp, ScalarOp); 13] = [
-                    (|x, y| x + y, |x, y| x + y),
-                    (|x, y| x - y, |x, y| x - y),
-                    (|x, y| x * y, |x, y| x * y),
-                    (|x, y| x / y, |x, y| x / y),
-                    (|x, y| Lanes::min(x, y), |x, y| Lanes::min(x, y)),
-                    (|x, y| Lanes::max(x, y), |x, y| Lanes::max(x, y)),
-                    (|x, _| Lanes::sqrt(x), |x, _| Lanes::sqrt(x)),
-                    (|x, _| Lanes::abs(x), |x, _| Lanes::abs(x)),
-                    (|x, _| Lanes::floor(x), |x, _| Lanes::floor(x)),
-                    (|x, _| Lanes::sin_cos(x).0, |x, _| Lanes::sin_cos(x).0),
-                    (|x, _| Lanes::sin_cos(x).1, |x, _| Lanes::sin_cos(x).1),
-                    (|x, y| Lanes::copysign(x, y), |x, y| Lanes::copysign(x, y)),
-                    (
-                        |x, y| Lanes::clamp(x, y, Vec4::splat(1.0)),
-                        |x, y| Lanes::clamp(x, y, 1.0),
-                    ),
-                ];
-                for (vector, scalar) in ops {
-                    let v = vector(a4, b4);
-                    for i in 0..4 {
-                        let (x, y) = if i % 2 == 0 { (a, b) } else { (b, a) };
-                        assert!(same(v[i], scalar(x, y)), "lane {i} of ({a}, {b})");
-                    }
-                }
-                // Lanes 0 and 2 compare (a, b), lanes 1 and 3 (b, a).
-                for i in 0..4 {
-                    let (x, y) = if i % 2 == 0 { (a, b) } else { (b, a) };
-                    let masks = [
-                        (a4.lt(b4), x < y),
-                        (a4.le(b4), x <= y),
-                        (a4.gt(b4), x > y),
-                        (Lanes::eq(a4, b4), x == y),
-                        (Lanes::is_finite(a4), x.is_finite()),
+    /// Checks that every operation gives in each lane what it gives on an `f32`, for the lanes
+    /// it runs with: lanes alternate (a, b) and (b, a) over all pairs of [`VALUES`].
+    struct ComputeAsOne;
+
+    impl LaneKernel for ComputeAsOne {
+        type Output = usize;
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) -> usize {
+            type ScalarOp = fn(f32, f32) -> f32;
+            for &a in &VALUES {
+                for &b in &VALUES {
+                    let pair = |i: usize| if i & 1 == 0 { (a, b) } else { (b, a) };
+                    let (x, y) = (L::from_fn(|i| pair(i).0), L::from_fn(|i| pair(i).1));
+                    let one = L::splat(1.0);
+                    let results: [(L, ScalarOp); 13] = [
+                        (x + y, |x, y| x + y),
+                        (x - y, |x, y| x - y),
+                        (x * y, |x, y| x * y),
+                        (x / y, |x, y| x / y),
+                        (x.min(y), |x, y| Lanes::min(x, y)),
+                        (x.max(y), |x, y| Lanes::max(x, y)),
+                        (x.sqrt(), |x, _| Lanes::sqrt(x)),
+                        (x.abs(), |x, _| Lanes::abs(x)),
+                        (x.floor(), |x, _| Lanes::floor(x)),
+                        (x.sin_cos().0, |x, _| Lanes::sin_cos(x).0),
+                        (x.sin_cos().1, |x, _| Lanes::sin_cos(x).1),
+                        (x.copysign(y), |x, y| Lanes::copysign(x, y)),
+                        (x.clamp(y, one), |x, y| Lanes::clamp(x, y, 1.0)),
                     ];
-                    for (mask, expected) in masks {
-                        assert_eq!(Mask::lane(mask, i), expected, "lane {i} of ({a}, {b})");
+                    for (op, (lanes, scalar)) in results.into_iter().enumerate() {
+                        for i in 0..W {
+                            let (x, y) = pair(i);
+                            assert!(
+                                same(lanes.lane(i), scalar(x, y)),
+                                "{W} lanes, operation {op}, lane {i} of ({a}, {b})"
+                            );
+                        }
                     }
+                    for i in 0..W {
+                        let (x_i, y_i) = pair(i);
+                        let masks = [
+                            (x.lt(y), x_i < y_i),
+                            (x.le(y), x_i <= y_i),
+                            (x.gt(y), x_i > y_i),
+                            (Lanes::eq(x, y), x_i == y_i),
+                            (Lanes::is_finite(x), x_i.is_finite()),
+                            (x.lt(y) | x.is_finite(), x_i < y_i || x_i.is_finite()),
+                            (!x.is_finite() & x.le(y), !x_i.is_finite() && x_i <= y_i),
+                            (x.le(y) & x.gt(y), false),
+                        ];
+                        for (m, (mask, expected)) in masks.into_iter().enumerate() {
+                            assert_eq!(mask.lane(i), expected, "{W} lanes, mask {m}, lane {i}");
+                        }
+                        let single = L::Mask::from_fn(|j| j == i);
+                        assert!(single.lane(i) && (0..W).all(|j| single.lane(j) == (j == i)));
+                        assert!(single.any() && single.all() == (W == 1));
+                    }
+                    assert!(
+                        L::Mask::from_fn(|_| true).all() && !(!L::Mask::from_fn(|_| true)).any()
+                    );
                 }
             }
+            W
         }
+    }
+
+    /// Every operation gives in each lane of four (`Vec4`) and of the widest lanes the
+    /// processor has (eight with AVX2) what it gives on an `f32`; and the widest are eight
+    /// exactly where AVX2 is there.
+    #[test]
+    fn lanes_of_every_width_compute_as_one() {
+        assert_eq!(ComputeAsOne.run::<Vec4, 4>(), 4);
+        let widest = with_widest_lanes(ComputeAsOne);
+        #[cfg(target_arch = "x86_64")]
+        assert_eq!(
+            widest,
+            if std::arch::is_x86_feature_detected!("avx2") {
+                8
+            } else {
+                4
+            }
+        );
+        #[cfg(not(target_arch = "x86_64"))]
+        assert_eq!(widest, 4);
     }
 
     /// A `V3` of four lanes normalises, crosses and dots as glam's `Vec3` does.
@@ -729,15 +987,37 @@ mod tests {
         crate::math::next_float_down(x)
     }
 
+    /// Groups of four and of eight cover every output once, a last partial group repeating its
+    /// last index in the lanes left.
     #[test]
-    fn by_fours_covers_every_input_once() {
-        let inputs: Vec<f32> = (0..7).map(|i| i as f32).collect();
-        let mut outputs = vec![0.0; 7];
-        by_fours(&mut outputs, |indices, out| {
-            for (o, i) in out.iter_mut().zip(indices) {
-                *o = 2.0 * inputs[i];
-            }
-        });
-        assert_eq!(outputs, vec![0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0]);
+    fn groups_cover_every_input_once() {
+        for len in [1, 3, 4, 7, 8, 9, 17] {
+            let inputs: Vec<f32> = (0..len).map(|i| i as f32).collect();
+            let expected: Vec<f32> = inputs.iter().map(|x| 2.0 * x).collect();
+            let mut outputs = vec![f32::NAN; len];
+            by_fours(&mut outputs, |indices, out| {
+                assert!(
+                    indices[out.len()..]
+                        .iter()
+                        .all(|&i| i == indices[out.len() - 1])
+                );
+                for (o, i) in out.iter_mut().zip(indices) {
+                    *o = 2.0 * inputs[i];
+                }
+            });
+            assert_eq!(outputs, expected, "groups of four, {len} outputs");
+            let mut outputs = vec![f32::NAN; len];
+            by_groups::<8, _>(&mut outputs, |indices, out| {
+                assert!(
+                    indices[out.len()..]
+                        .iter()
+                        .all(|&i| i == indices[out.len() - 1])
+                );
+                for (o, i) in out.iter_mut().zip(indices) {
+                    *o = 2.0 * inputs[i];
+                }
+            });
+            assert_eq!(outputs, expected, "groups of eight, {len} outputs");
+        }
     }
 }

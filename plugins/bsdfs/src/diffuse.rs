@@ -6,9 +6,9 @@
 //!
 //! One-sided in the shading frame: directions below the shading horizon get zero.
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 use lumis_core::bsdf::{
-    Bsdf, BsdfFlags, BsdfSample, BsdfSampleLanes, eval_pdf_by_fours, sample_by_fours,
+    Bsdf, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes, eval_pdf_in_lanes, sample_in_lanes,
 };
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::{Lanes, V3};
@@ -26,7 +26,9 @@ impl Diffuse {
     pub fn new(reflectance: Rgb) -> Self {
         Diffuse { reflectance }
     }
+}
 
+impl BsdfLanes for Diffuse {
     /// `eval` and `pdf` in each lane: the one formula of the scalar and the batch methods.
     #[inline(always)]
     fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
@@ -39,9 +41,14 @@ impl Diffuse {
         )
     }
 
-    /// `sample` in each lane.
+    /// `sample` in each lane (one lobe: `u_lobe` is not used).
     #[inline(always)]
-    fn sample_lanes<L: Lanes>(&self, wo: V3<L>, (u0, u1): (L, L)) -> BsdfSampleLanes<L> {
+    fn sample_lanes<L: Lanes>(
+        &self,
+        wo: V3<L>,
+        _u_lobe: L,
+        (u0, u1): (L, L),
+    ) -> BsdfSampleLanes<L> {
         let zero = L::splat(0.0);
         let wi = square_to_cosine_hemisphere_lanes(u0, u1);
         let pdf = cosine_hemisphere_pdf_lanes(wi.z);
@@ -69,15 +76,16 @@ impl Bsdf for Diffuse {
     }
 
     fn sample(&self, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        self.sample_lanes::<f32>(V3::splat(wo), (u.x, u.y)).lane(0)
+        self.sample_lanes::<f32>(V3::splat(wo), 0.0, (u.x, u.y))
+            .lane(0)
     }
 
     fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
-        eval_pdf_by_fours(wo, wi, out, |wo, wi| self.eval_pdf_lanes::<Vec4>(wo, wi));
+        eval_pdf_in_lanes(self, wo, wi, out);
     }
 
     fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
-        sample_by_fours(wo, u, out, |wo, _, u| self.sample_lanes::<Vec4>(wo, u));
+        sample_in_lanes(self, wo, u, out);
     }
 
     fn flags(&self) -> BsdfFlags {

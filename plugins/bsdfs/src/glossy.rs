@@ -20,9 +20,9 @@
 //! with the cosine-weighted hemisphere, chosen in proportion to their estimated albedos for
 //! the given ωo; `pdf` is exactly that mixture's density.
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 use lumis_core::bsdf::{
-    Bsdf, BsdfFlags, BsdfSample, BsdfSampleLanes, eval_pdf_by_fours, sample_by_fours,
+    Bsdf, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes, eval_pdf_in_lanes, sample_in_lanes,
 };
 use lumis_core::math::lanes::{Lanes, Mask, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
@@ -77,6 +77,12 @@ fn schlick<L: Lanes>(f0: Rgb, cos: L) -> V3<L> {
     V3::splat(f0) + V3::splat(Rgb::ONE - f0) * m5
 }
 
+/// ωo reflected about the microfacet normal h.
+#[inline(always)]
+fn reflect<L: Lanes>(wo: V3<L>, h: V3<L>) -> V3<L> {
+    h * (L::splat(2.0) * wo.dot(h)) - wo
+}
+
 /// x⁵, as products.
 #[inline(always)]
 fn pow5<L: Lanes>(x: L) -> L {
@@ -85,7 +91,7 @@ fn pow5<L: Lanes>(x: L) -> L {
 }
 
 /// The lobes' formulas over [`Lanes`]: the scalar methods run them on one sample, the batch
-/// methods on four, with the same operations.
+/// methods on four or eight, with the same operations.
 impl Glossy {
     pub fn new(alpha: f32, f0: Rgb, diffuse: Rgb, masking: Masking) -> Self {
         Glossy {
@@ -208,13 +214,6 @@ impl Glossy {
         L::select(pair.below(), zero, pdf)
     }
 
-    /// `eval` and `pdf` of the mixture.
-    #[inline(always)]
-    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
-        let pair = self.pair(wo, wi);
-        (self.value(&pair), self.density(&pair))
-    }
-
     /// Heitz 2018: a visible normal for ωo (above the surface).
     #[inline(always)]
     fn sample_visible_normal<L: Lanes>(&self, wo: V3<L>, (u0, u1): (L, L)) -> V3<L> {
@@ -237,21 +236,29 @@ impl Glossy {
         let nh = t1 * p1 + t2 * p2 + vh * (one - p1 * p1 - p2 * p2).max(zero).sqrt();
         V3::new(alpha * nh.x, alpha * nh.y, nh.z.max(zero)).normalize()
     }
+}
+
+impl BsdfLanes for Glossy {
+    /// `eval` and `pdf` of the mixture.
+    #[inline(always)]
+    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
+        let pair = self.pair(wo, wi);
+        (self.value(&pair), self.density(&pair))
+    }
 
     /// `sample` in each lane: the specular lobe by visible normals or the diffuse base, then
     /// its value and density from `eval_pdf` (as [`lumis_core::bsdf::sample_from_pdf`]).
     #[inline(always)]
     fn sample_lanes<L: Lanes>(&self, wo: V3<L>, u_lobe: L, u: (L, L)) -> BsdfSampleLanes<L> {
         let specular = u_lobe.lt(self.specular_probability(wo));
-        let reflected = |h: V3<L>| h * (L::splat(2.0) * wo.dot(h)) - wo;
         let wi = if specular.all() {
-            reflected(self.sample_visible_normal(wo, u))
+            reflect(wo, self.sample_visible_normal(wo, u))
         } else if !specular.any() {
             square_to_cosine_hemisphere_lanes(u.0, u.1)
         } else {
             V3::select(
                 specular,
-                reflected(self.sample_visible_normal(wo, u)),
+                reflect(wo, self.sample_visible_normal(wo, u)),
                 square_to_cosine_hemisphere_lanes(u.0, u.1),
             )
         };
@@ -281,13 +288,11 @@ impl Bsdf for Glossy {
     }
 
     fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
-        eval_pdf_by_fours(wo, wi, out, |wo, wi| self.eval_pdf_lanes::<Vec4>(wo, wi));
+        eval_pdf_in_lanes(self, wo, wi, out);
     }
 
     fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
-        sample_by_fours(wo, u, out, |wo, u_lobe, u| {
-            self.sample_lanes::<Vec4>(wo, u_lobe, u)
-        });
+        sample_in_lanes(self, wo, u, out);
     }
 
     fn flags(&self) -> BsdfFlags {

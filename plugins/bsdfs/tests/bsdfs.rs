@@ -9,6 +9,7 @@ use lumis_core::bsdf::Bsdf;
 use lumis_core::chi2::{
     Chi2Test, FAMILY_FALSE_ALARM, run_side_by_side, sidak, test_bsdf, test_seed, z_limit,
 };
+use lumis_core::math::lanes::{MAX_WIDTH, limit_width};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, BsdfPlugin};
 use lumis_core::sampler::Sampler;
@@ -408,17 +409,17 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
 
 /// The batch entry points give what the single calls give, bit for bit: `sample_batch` what
 /// `sample` gives for each `(u_lobe, u)`, `eval_pdf_batch` what `eval_pdf` gives for each
-/// direction. Batches of every length a group of four can end with (1 to 3 left over, and
-/// longer ones), of one ωo (one shading point) or of several (one per camera sample), for ωo at
-/// the test incidences and hostile ones (below the horizon, grazing,
-/// exactly normal, a hair above the horizon, off the normal by 1e-20); the numbers from a
-/// seeded stream with the corners 0, 1/2 and 0.9999999 in some lanes, the directions sampled,
-/// uniform over the sphere and special (the poles, the horizon, just below it, the mirror
-/// direction). Each output starts as a NaN sentinel, so an element the batch leaves unwritten
-/// fails.
+/// direction. At both kernel widths (four lanes, and eight where the processor has AVX2), for
+/// batches of every length a group of four or eight can end with (1 to 7 left over, and longer
+/// ones), of one ωo (one shading point) or of several (one per camera sample), for ωo at the
+/// test incidences and hostile ones (below the horizon, grazing, exactly normal, a hair above
+/// the horizon, off the normal by 1e-20); the numbers from a seeded stream with the corners 0,
+/// 1/2 and 0.9999999 in some lanes, the directions sampled, uniform over the sphere and special
+/// (the poles, the horizon, just below it, the mirror direction). Each output starts as a NaN
+/// sentinel, so an element the batch leaves unwritten fails.
 #[test]
 fn batches_give_what_single_calls_give_bit_for_bit() {
-    const LENGTHS: [usize; 7] = [1, 2, 3, 4, 5, 7, 64];
+    const LENGTHS: [usize; 10] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 64];
     const ROUNDS: usize = 40;
     const CORNERS: [f32; 3] = [0.0, 0.5, 0.999_999_9];
     let hostile = [
@@ -473,123 +474,128 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
     // Batches in which some lanes give a sample and others none, with wo above the horizon:
     // where a lane's mask matters.
     let mut mixed = 0usize;
-    for (name, b) in all_bsdfs() {
-        let (mut some_above, mut positive_above) = (0usize, 0usize);
-        for &wo in &incidences {
-            let mut s = Sampler::new(test_seed(), 14, 15);
-            let (mut some, mut positive) = (0usize, 0usize);
-            for round in 0..ROUNDS {
-                for len in LENGTHS {
-                    // (u_lobe, u): from the stream, with corners in some lanes (one number,
-                    // two, or all three).
-                    let u: Vec<(f32, Vec2)> = (0..len)
-                        .map(|k| {
-                            let (mut ul, mut u) = (s.next_1d(), s.next_2d());
-                            let corner = CORNERS[(s.next_1d() * 3.0) as usize];
-                            match (k * 7 + round * 3) % 8 {
-                                0 => ul = corner,
-                                1 => u.x = corner,
-                                2 => u.y = corner,
-                                3 => (ul, u) = (corner, Vec2::splat(corner)),
-                                4 => u = Vec2::new(corner, CORNERS[(k + round) % 3]),
-                                _ => {}
-                            }
-                            (ul, u)
-                        })
-                        .collect();
-                    // One shading point in even rounds (its ωo given once in rounds divisible by
-                    // four, for every element in the others); in odd ones, the elements of
-                    // several (the camera samples of a pixel), each its own ωo.
-                    let wos: Vec<Vec3> = (0..len)
-                        .map(|k| match round % 2 {
-                            0 => wo,
-                            _ => incidences[(k + round) % incidences.len()],
-                        })
-                        .collect();
-                    let mut out = vec![Some(sentinel); len];
-                    let wo_argument = match round % 4 {
-                        0 => std::slice::from_ref(&wo),
-                        _ => &wos[..],
-                    };
-                    b.sample_batch(wo_argument, &u, &mut out);
-                    let drawn = out.iter().filter(|s| s.is_some()).count();
-                    // (Of the BSDFs with their own batch code.)
-                    if name == "diffuse" || name.starts_with("glossy") {
-                        mixed += (drawn > 0 && drawn < len) as usize;
-                    }
-                    for (k, (&(ul, uk), batch)) in u.iter().zip(&out).enumerate() {
-                        let wo = wos[k];
-                        let single = b.sample(wo, ul, uk);
-                        assert_eq!(
-                            sample_bits(*batch),
-                            sample_bits(single),
-                            "{name}: sample_batch of {len}, element {k}: wo {wo:?}, u_lobe {ul:?}, \
-                             u {uk:?}: batch {batch:?}, single {single:?}"
-                        );
-                        some += single.is_some() as usize;
-                        none_overall += single.is_none() as usize;
-                        none_above += (single.is_none() && wo.z > 0.0) as usize;
-                    }
-                    // Directions: sampled (a uniform one where sampling fails), uniform over
-                    // the sphere, and special.
-                    let wi: Vec<Vec3> = (0..len)
-                        .map(|k| {
-                            let (ul, u) = (s.next_1d(), s.next_2d());
-                            let uniform = || {
-                                let z = 1.0 - 2.0 * u.x;
-                                let r = (1.0 - z * z).max(0.0).sqrt();
-                                let phi = std::f32::consts::TAU * u.y;
-                                Vec3::new(r * phi.cos(), r * phi.sin(), z)
-                            };
-                            match (k + round) % 3 {
-                                0 => b.sample(wo, ul, u).map_or_else(uniform, |smp| smp.wi),
-                                1 => uniform(),
-                                _ => {
-                                    let special = special(wo);
-                                    special[((ul * special.len() as f32) as usize)
-                                        .min(special.len() - 1)]
+    // Both kernel widths, four and (with AVX2) eight: the same results either way.
+    for width in [4, MAX_WIDTH] {
+        limit_width(width);
+        for (name, b) in all_bsdfs() {
+            let (mut some_above, mut positive_above) = (0usize, 0usize);
+            for &wo in &incidences {
+                let mut s = Sampler::new(test_seed(), 14, 15);
+                let (mut some, mut positive) = (0usize, 0usize);
+                for round in 0..ROUNDS {
+                    for len in LENGTHS {
+                        // (u_lobe, u): from the stream, with corners in some lanes (one number,
+                        // two, or all three).
+                        let u: Vec<(f32, Vec2)> = (0..len)
+                            .map(|k| {
+                                let (mut ul, mut u) = (s.next_1d(), s.next_2d());
+                                let corner = CORNERS[(s.next_1d() * 3.0) as usize];
+                                match (k * 7 + round * 3) % 8 {
+                                    0 => ul = corner,
+                                    1 => u.x = corner,
+                                    2 => u.y = corner,
+                                    3 => (ul, u) = (corner, Vec2::splat(corner)),
+                                    4 => u = Vec2::new(corner, CORNERS[(k + round) % 3]),
+                                    _ => {}
                                 }
-                            }
-                        })
-                        .collect();
-                    let mut out = vec![(Vec3::NAN, f32::NAN); len];
-                    let wo_argument = match round % 4 {
-                        0 => std::slice::from_ref(&wo),
-                        _ => &wos[..],
-                    };
-                    b.eval_pdf_batch(wo_argument, &wi, &mut out);
-                    for (k, (&wik, &batch)) in wi.iter().zip(&out).enumerate() {
-                        let wo = wos[k];
-                        let single = b.eval_pdf(wo, wik);
-                        assert_eq!(
-                            eval_pdf_bits(batch),
-                            eval_pdf_bits(single),
-                            "{name}: eval_pdf_batch of {len}, element {k}: wo {wo:?}, wi \
+                                (ul, u)
+                            })
+                            .collect();
+                        // One shading point in even rounds (its ωo given once in rounds divisible by
+                        // four, for every element in the others); in odd ones, the elements of
+                        // several (the camera samples of a pixel), each its own ωo.
+                        let wos: Vec<Vec3> = (0..len)
+                            .map(|k| match round % 2 {
+                                0 => wo,
+                                _ => incidences[(k + round) % incidences.len()],
+                            })
+                            .collect();
+                        let mut out = vec![Some(sentinel); len];
+                        let wo_argument = match round % 4 {
+                            0 => std::slice::from_ref(&wo),
+                            _ => &wos[..],
+                        };
+                        b.sample_batch(wo_argument, &u, &mut out);
+                        let drawn = out.iter().filter(|s| s.is_some()).count();
+                        // (Of the BSDFs with their own batch code.)
+                        if name == "diffuse" || name.starts_with("glossy") {
+                            mixed += (drawn > 0 && drawn < len) as usize;
+                        }
+                        for (k, (&(ul, uk), batch)) in u.iter().zip(&out).enumerate() {
+                            let wo = wos[k];
+                            let single = b.sample(wo, ul, uk);
+                            assert_eq!(
+                                sample_bits(*batch),
+                                sample_bits(single),
+                                "{name} ({width} lanes): sample_batch of {len}, element {k}: wo {wo:?}, u_lobe {ul:?}, \
+                             u {uk:?}: batch {batch:?}, single {single:?}"
+                            );
+                            some += single.is_some() as usize;
+                            none_overall += single.is_none() as usize;
+                            none_above += (single.is_none() && wo.z > 0.0) as usize;
+                        }
+                        // Directions: sampled (a uniform one where sampling fails), uniform over
+                        // the sphere, and special.
+                        let wi: Vec<Vec3> = (0..len)
+                            .map(|k| {
+                                let (ul, u) = (s.next_1d(), s.next_2d());
+                                let uniform = || {
+                                    let z = 1.0 - 2.0 * u.x;
+                                    let r = (1.0 - z * z).max(0.0).sqrt();
+                                    let phi = std::f32::consts::TAU * u.y;
+                                    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+                                };
+                                match (k + round) % 3 {
+                                    0 => b.sample(wo, ul, u).map_or_else(uniform, |smp| smp.wi),
+                                    1 => uniform(),
+                                    _ => {
+                                        let special = special(wo);
+                                        special[((ul * special.len() as f32) as usize)
+                                            .min(special.len() - 1)]
+                                    }
+                                }
+                            })
+                            .collect();
+                        let mut out = vec![(Vec3::NAN, f32::NAN); len];
+                        let wo_argument = match round % 4 {
+                            0 => std::slice::from_ref(&wo),
+                            _ => &wos[..],
+                        };
+                        b.eval_pdf_batch(wo_argument, &wi, &mut out);
+                        for (k, (&wik, &batch)) in wi.iter().zip(&out).enumerate() {
+                            let wo = wos[k];
+                            let single = b.eval_pdf(wo, wik);
+                            assert_eq!(
+                                eval_pdf_bits(batch),
+                                eval_pdf_bits(single),
+                                "{name} ({width} lanes): eval_pdf_batch of {len}, element {k}: wo {wo:?}, wi \
                              {wik:?}: batch {batch:?}, single {single:?}"
-                        );
-                        positive += (single.1 > 0.0) as usize;
+                            );
+                            positive += (single.1 > 0.0) as usize;
+                        }
                     }
                 }
+                some_overall += some;
+                if wo.z > 0.0 {
+                    some_above += some;
+                    positive_above += positive;
+                }
+                if INCIDENT.map(incident).contains(&wo) {
+                    assert!(
+                        some >= 1_000,
+                        "{name} ({width} lanes): only {some} samples compared at wo {wo:?}"
+                    );
+                }
             }
-            some_overall += some;
-            if wo.z > 0.0 {
-                some_above += some;
-                positive_above += positive;
-            }
-            if INCIDENT.map(incident).contains(&wo) {
-                assert!(
-                    some >= 1_000,
-                    "{name}: only {some} samples compared at wo {wo:?}"
-                );
-            }
-        }
-        // A delta lobe has no density: its directions are compared all the same.
-        assert!(
-            some_above >= 8_000 && (b.flags().delta || positive_above >= 5_000),
-            "{name}: only {some_above} samples and {positive_above} directions of positive \
+            // A delta lobe has no density: its directions are compared all the same.
+            assert!(
+                some_above >= 8_000 && (b.flags().delta || positive_above >= 5_000),
+                "{name} ({width} lanes): only {some_above} samples and {positive_above} directions of positive \
              density compared with wo above the horizon"
-        );
+            );
+        }
     }
+    limit_width(MAX_WIDTH);
     assert!(
         mixed >= 100,
         "only {mixed} batches mixed samples and failed ones"

@@ -13,14 +13,14 @@
 //! the cone of directions the sphere subtends is sampled uniformly (pbrt-v4 §6.2.4), which is far
 //! better than area sampling for small, distant spheres.
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 use lumis_core::accel::{Ray, ray_meets_triangle};
 use lumis_core::emitter::{
-    Emitter, EmitterContext, EmitterHit, EmitterSample, EmitterSampleLanes, ReferencePoint,
-    sample_direction_by_fours,
+    Emitter, EmitterContext, EmitterHit, EmitterLanes, EmitterSample, EmitterSampleLanes,
+    ReferencePoint, sample_direction_in_lanes,
 };
 use lumis_core::math::frame::FrameLanes;
-use lumis_core::math::lanes::{Lanes, Mask, V3};
+use lumis_core::math::lanes::{Lanes, MAX_WIDTH, Mask, V3};
 use lumis_core::math::warp::square_to_triangle_barycentrics_lanes;
 use lumis_core::math::{Distribution1D, Rgb};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -132,7 +132,60 @@ fn cone<L: Lanes>(radius: f32, distance2: L) -> (L, L) {
     )
 }
 
-impl AreaEmitter {
+/// A point, its normal, its solid-angle density and its direction from `reference`, in each
+/// lane.
+type SphereSample<L> = (V3<L>, V3<L>, L, V3<L>);
+
+/// From inside sphere `s`: uniform in area, at height 1 − 2 u0 and at the angle whose sine and
+/// cosine are `phi`. Functions rather than closures, which would be compiled apart from the
+/// AVX2 kernel that calls them.
+#[inline(always)]
+fn sphere_area_sample<L: Lanes>(
+    s: &Sphere,
+    reference: V3<L>,
+    u0: L,
+    (sin_phi, cos_phi): (L, L),
+) -> SphereSample<L> {
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    let z = one - L::splat(2.0) * u0;
+    let r = (one - z * z).max(zero).sqrt();
+    let n = V3::new(r * cos_phi, r * sin_phi, z);
+    let p = V3::splat(s.center) + n * L::splat(s.radius);
+    let to = p - reference;
+    let wi = to.normalize_or_zero();
+    let area = 4.0 * PI * s.radius * s.radius;
+    (p, n, solid_angle_pdf(1.0 / area, to.length(), n, wi), wi)
+}
+
+/// From outside sphere `s`: uniform in the cone it subtends, 1 − cos θ = u0 (1 − cos θmax).
+#[inline(always)]
+fn sphere_cone_sample<L: Lanes>(
+    s: &Sphere,
+    reference: V3<L>,
+    u0: L,
+    (sin_phi, cos_phi): (L, L),
+) -> SphereSample<L> {
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    let center = V3::splat(s.center);
+    let to_center = center - reference;
+    let d2 = to_center.length_squared();
+    let (sin2_max, one_minus_cos_max) = cone(s.radius, d2);
+    let one_minus_cos = u0 * one_minus_cos_max;
+    let sin2 = one_minus_cos * (L::splat(2.0) - one_minus_cos);
+    let cos = one - one_minus_cos;
+    // Angle α at the centre between the axis and the point the direction meets.
+    let sin_max = sin2_max.sqrt();
+    let cos_alpha = sin2 / sin_max + cos * (one - sin2 / sin2_max).max(zero).sqrt();
+    let sin_alpha = (one - cos_alpha * cos_alpha).max(zero).sqrt();
+    let frame = FrameLanes::from_normal(-to_center / d2.sqrt());
+    let n = frame.to_world(V3::new(sin_alpha * cos_phi, sin_alpha * sin_phi, cos_alpha));
+    let p = center + n * L::splat(s.radius);
+    let wi = (p - reference).normalize_or_zero();
+    let pdf = one / (L::splat(TAU) * one_minus_cos_max);
+    (p, n, pdf, wi)
+}
+
+impl EmitterLanes for AreaEmitter {
     /// `sample_direction` in each lane, from the reference points `reference`: the one formula
     /// of the scalar and the batch methods.
     #[inline(always)]
@@ -146,7 +199,7 @@ impl AreaEmitter {
                 by_area,
                 area,
             } => {
-                let mut picked = [(0, 0.0); 4];
+                let mut picked = [(0, 0.0); MAX_WIDTH];
                 for (i, picked) in picked.iter_mut().enumerate().take(L::WIDTH) {
                     *picked = by_area.sample_reuse(u0.lane(i));
                 }
@@ -186,50 +239,16 @@ impl AreaEmitter {
                 (p, normal, pdf, wi, met)
             }
             Surface::Sphere(s) => {
-                let center = V3::splat(s.center);
-                let to_center = center - reference;
-                let d2 = to_center.length_squared();
+                let d2 = (V3::splat(s.center) - reference).length_squared();
                 let inside = d2.le(L::splat(s.radius * s.radius));
-                let (sin_phi, cos_phi) = (L::splat(TAU) * u1).sin_cos();
-                // Inside the sphere: uniform area sampling.
-                let inside_sample = || {
-                    let z = one - L::splat(2.0) * u0;
-                    let r = (one - z * z).max(zero).sqrt();
-                    let n = V3::new(r * cos_phi, r * sin_phi, z);
-                    let p = center + n * L::splat(s.radius);
-                    let to = p - reference;
-                    let wi = to.normalize_or_zero();
-                    let area = 4.0 * PI * s.radius * s.radius;
-                    (p, n, solid_angle_pdf(1.0 / area, to.length(), n, wi), wi)
-                };
-                // Outside: uniform in the cone the sphere subtends.
-                let cone_sample = || {
-                    let (sin2_max, one_minus_cos_max) = cone(s.radius, d2);
-                    // 1 − cos θ uniform in [0, 1 − cos θmax].
-                    let one_minus_cos = u0 * one_minus_cos_max;
-                    let sin2 = one_minus_cos * (L::splat(2.0) - one_minus_cos);
-                    let cos = one - one_minus_cos;
-                    // Angle α at the centre between the axis and the point the direction meets.
-                    let sin_max = sin2_max.sqrt();
-                    let cos_alpha = sin2 / sin_max + cos * (one - sin2 / sin2_max).max(zero).sqrt();
-                    let sin_alpha = (one - cos_alpha * cos_alpha).max(zero).sqrt();
-                    let frame = FrameLanes::from_normal(-to_center / d2.sqrt());
-                    let n = frame.to_world(V3::new(
-                        sin_alpha * cos_phi,
-                        sin_alpha * sin_phi,
-                        cos_alpha,
-                    ));
-                    let p = center + n * L::splat(s.radius);
-                    let wi = (p - reference).normalize_or_zero();
-                    let pdf = one / (L::splat(TAU) * one_minus_cos_max);
-                    (p, n, pdf, wi)
-                };
+                let phi = (L::splat(TAU) * u1).sin_cos();
                 let (p, n, pdf, wi) = if !inside.any() {
-                    cone_sample()
+                    sphere_cone_sample(s, reference, u0, phi)
                 } else if inside.all() {
-                    inside_sample()
+                    sphere_area_sample(s, reference, u0, phi)
                 } else {
-                    let (a, b) = (inside_sample(), cone_sample());
+                    let a = sphere_area_sample(s, reference, u0, phi);
+                    let b = sphere_cone_sample(s, reference, u0, phi);
                     (
                         V3::select(inside, a.0, b.0),
                         V3::select(inside, a.1, b.1),
@@ -263,9 +282,7 @@ impl Emitter for AreaEmitter {
         u: &[Vec2],
         out: &mut [Option<EmitterSample>],
     ) {
-        sample_direction_by_fours(reference, u, out, self.radiance, |reference, u| {
-            self.sample_lanes::<Vec4>(reference, u)
-        });
+        sample_direction_in_lanes(self, reference, u, out, self.radiance);
     }
 
     fn pdf_direction(&self, reference: &ReferencePoint, wi: Vec3, hit: Option<&EmitterHit>) -> f32 {

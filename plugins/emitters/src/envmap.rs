@@ -43,10 +43,10 @@
 //! Pixels that are not valid radiance — negative (lossy compression leaves small negative
 //! values) or not finite — are read as zero in that channel.
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, EmitterSample, ReferencePoint};
 use lumis_core::image_io::read_exr_rgb;
-use lumis_core::math::lanes::{Lanes, V3, by_fours};
+use lumis_core::math::lanes::{LaneKernel, Lanes, V3, by_groups, with_widest_lanes};
 use lumis_core::math::{Distribution2D, Rgb, luminance, prefetch};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::EmitterPlugin;
@@ -544,6 +544,45 @@ impl EnvironmentMap {
     }
 }
 
+/// The kernel of [`EnvironmentMap`]'s `sample_direction_batch`.
+struct SampleBatch<'a> {
+    map: &'a EnvironmentMap,
+    u: &'a [Vec2],
+    out: &'a mut [Option<EmitterSample>],
+}
+
+impl LaneKernel for SampleBatch<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lanes, const W: usize>(self) {
+        let SampleBatch { map, u, out } = self;
+        by_groups::<W, _>(
+            out,
+            #[inline(always)]
+            |indices, out| {
+                let mut sampled = [Vec2::ZERO; W];
+                let mut early = [None; W];
+                for (i, &index) in indices.iter().enumerate() {
+                    // Only a black map draws nothing, and then in no lane.
+                    let Some(s) = map.sample_uv(u[index]) else {
+                        out.fill(None);
+                        return;
+                    };
+                    sampled[i] = s;
+                    early[i] = map.read_early(s);
+                }
+                let wi = map
+                    .to_direction_lanes(L::from_fn(|i| sampled[i].x), L::from_fn(|i| sampled[i].y));
+                let (u, v, sin_theta) = map.to_uv_lanes(wi);
+                for (k, out) in out.iter_mut().enumerate() {
+                    let uv = Vec2::new(u.lane(k), v.lane(k));
+                    *out = map.finish_sample(early[k], wi.lane(k), uv, sin_theta.lane(k));
+                }
+            },
+        );
+    }
+}
+
 impl Emitter for EnvironmentMap {
     fn sample_direction(&self, _: &ReferencePoint, u: Vec2) -> Option<EmitterSample> {
         let sampled = self.sample_uv(u)?;
@@ -553,32 +592,16 @@ impl Emitter for EnvironmentMap {
         self.finish_sample(early, wi, uv, sin_theta)
     }
 
-    /// Four samples at a time: the tables are read lane by lane, the trigonometry of the
-    /// conversions to and from directions runs in the four lanes of `Vec4`, with the same
-    /// operations as `sample_direction`'s.
+    /// Four or eight samples at a time ([`with_widest_lanes`]): the tables are read lane by
+    /// lane, the trigonometry of the conversions to and from directions runs in the lanes, with
+    /// the same operations as `sample_direction`'s.
     fn sample_direction_batch(
         &self,
         _: &[ReferencePoint],
         u: &[Vec2],
         out: &mut [Option<EmitterSample>],
     ) {
-        by_fours(out, |indices, out| {
-            let sampled = indices.map(|i| self.sample_uv(u[i]));
-            // Only a black map draws nothing, and then in no lane.
-            if sampled.iter().any(Option::is_none) {
-                out.fill(None);
-                return;
-            }
-            let sampled = sampled.map(|s| s.unwrap_or_default());
-            let early = sampled.map(|s| self.read_early(s));
-            let lanes = |coordinate: fn(Vec2) -> f32| Vec4::from_fn(|i| coordinate(sampled[i]));
-            let wi = self.to_direction_lanes(lanes(|s| s.x), lanes(|s| s.y));
-            let (u, v, sin_theta) = self.to_uv_lanes(wi);
-            for (k, out) in out.iter_mut().enumerate() {
-                let uv = Vec2::new(u.lane(k), v.lane(k));
-                *out = self.finish_sample(early[k], wi.lane(k), uv, sin_theta.lane(k));
-            }
-        });
+        with_widest_lanes(SampleBatch { map: self, u, out });
     }
 
     fn pdf_direction(&self, _: &ReferencePoint, wi: Vec3, _: Option<&EmitterHit>) -> f32 {

@@ -9,6 +9,7 @@ use lumis_core::chi2::{
 };
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, ReferencePoint};
 use lumis_core::math::Rgb;
+use lumis_core::math::lanes::{MAX_WIDTH, limit_width};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, EmitterPlugin};
 use lumis_core::scene::shapes::{self, ShapeGeometry, Sphere};
@@ -559,15 +560,16 @@ fn light_on_triangles(params: &str) -> ShapeLight {
 /// emitter: area lights on triangles (the square, one- and two-sided, and five triangles of
 /// different areas, seen from in front, from behind, from within their plane and from on them)
 /// and on spheres (one- and two-sided, from far, mid, near, just outside, on the surface and
-/// inside, where the sampling switches from cone to area), whose batches run four lanes at a
-/// time, and the environment map and delta lights, which use the trait's default. Batches of
-/// every length a group of four can end with, of u from a seeded stream with, in some lanes,
-/// values on and next to the edges of the warps (points on a triangle's edge, the cone's rim,
-/// the diagonal u.x = u.y of the triangle warp). Each output starts as a NaN sentinel, so an
-/// element the batch leaves unwritten fails.
+/// inside, where the sampling switches from cone to area), and the environment map, whose
+/// batches run in lanes, at both widths (four, and eight where the processor has AVX2); and
+/// the delta lights, which use the trait's default. Batches of every length a group of four or
+/// eight can end with, of u from a seeded stream with, in some lanes, values on and next to the
+/// edges of the warps (points on a triangle's edge, the cone's rim, the diagonal u.x = u.y of
+/// the triangle warp). Each output starts as a NaN sentinel, so an element the batch leaves
+/// unwritten fails.
 #[test]
 fn batches_give_what_single_calls_give_bit_for_bit() {
-    const LENGTHS: [usize; 7] = [1, 2, 3, 4, 5, 7, 64];
+    const LENGTHS: [usize; 10] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 64];
     const ROUNDS: usize = 12;
     let bits = |s: &Option<lumis_core::emitter::EmitterSample>| {
         s.map(|s| {
@@ -702,73 +704,80 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
     ];
     let mut s = test_sampler(9);
     let mut mixed_area = 0;
-    for (name, light, from) in &cases {
-        let (mut some, mut none, mut mixed) = (0usize, 0usize, 0usize);
-        let from_all: &[Vec3] = from;
-        for &from in from {
-            let r = ReferencePoint { position: from };
-            for round in 0..ROUNDS {
-                for len in LENGTHS {
-                    let u: Vec<Vec2> = (0..len)
-                        .map(|k| {
-                            let mut u = s.next_2d();
-                            let edge = edges[((s.next_1d() * edges.len() as f32) as usize)
-                                .min(edges.len() - 1)];
-                            match (k * 5 + round) % 8 {
-                                4 => u.x = edge,
-                                5 => u.y = edge,
-                                6 => u = Vec2::new(edge, edges[(k + round) % edges.len()]),
-                                7 => u.y = u.x,
-                                _ => {}
-                            }
-                            u
-                        })
-                        .collect();
-                    // One reference point in even rounds; in odd ones, each element from one of
-                    // the case's points (the camera samples of a pixel).
-                    let references: Vec<ReferencePoint> = (0..len)
-                        .map(|k| match round % 2 {
-                            0 => r,
-                            _ => ReferencePoint {
-                                position: from_all[(k + round) % from_all.len()],
-                            },
-                        })
-                        .collect();
-                    let mut out = vec![Some(sentinel); len];
-                    // The one point given once in rounds divisible by four.
-                    let reference_argument = match round % 4 {
-                        0 => std::slice::from_ref(&r),
-                        _ => &references[..],
-                    };
-                    light.sample_direction_batch(reference_argument, &u, &mut out);
-                    for (k, (&uk, batch)) in u.iter().zip(&out).enumerate() {
-                        let single = light.sample_direction(&references[k], uk);
-                        assert_eq!(
-                            bits(batch),
-                            bits(&single),
-                            "{name} from {from:?}: batch of {len}, element {k}, u {uk:?}: \
+    // Both kernel widths, four and (with AVX2) eight: the same results either way.
+    for width in [4, MAX_WIDTH] {
+        limit_width(width);
+        for (name, light, from) in &cases {
+            let (mut some, mut none, mut mixed) = (0usize, 0usize, 0usize);
+            let from_all: &[Vec3] = from;
+            for &from in from {
+                let r = ReferencePoint { position: from };
+                for round in 0..ROUNDS {
+                    for len in LENGTHS {
+                        let u: Vec<Vec2> = (0..len)
+                            .map(|k| {
+                                let mut u = s.next_2d();
+                                let edge = edges[((s.next_1d() * edges.len() as f32) as usize)
+                                    .min(edges.len() - 1)];
+                                match (k * 5 + round) % 8 {
+                                    4 => u.x = edge,
+                                    5 => u.y = edge,
+                                    6 => u = Vec2::new(edge, edges[(k + round) % edges.len()]),
+                                    7 => u.y = u.x,
+                                    _ => {}
+                                }
+                                u
+                            })
+                            .collect();
+                        // One reference point in even rounds; in odd ones, each element from one of
+                        // the case's points (the camera samples of a pixel).
+                        let references: Vec<ReferencePoint> = (0..len)
+                            .map(|k| match round % 2 {
+                                0 => r,
+                                _ => ReferencePoint {
+                                    position: from_all[(k + round) % from_all.len()],
+                                },
+                            })
+                            .collect();
+                        let mut out = vec![Some(sentinel); len];
+                        // The one point given once in rounds divisible by four.
+                        let reference_argument = match round % 4 {
+                            0 => std::slice::from_ref(&r),
+                            _ => &references[..],
+                        };
+                        light.sample_direction_batch(reference_argument, &u, &mut out);
+                        for (k, (&uk, batch)) in u.iter().zip(&out).enumerate() {
+                            let single = light.sample_direction(&references[k], uk);
+                            assert_eq!(
+                                bits(batch),
+                                bits(&single),
+                                "{name} from {from:?}, {width} lanes: batch of {len}, element {k}, u {uk:?}: \
                              batch {batch:?}, single {single:?}"
-                        );
-                        some += single.is_some() as usize;
-                        none += single.is_none() as usize;
+                            );
+                            some += single.is_some() as usize;
+                            none += single.is_none() as usize;
+                        }
+                        let drawn = out.iter().filter(|s| s.is_some()).count();
+                        mixed += (drawn > 0 && drawn < len) as usize;
                     }
-                    let drawn = out.iter().filter(|s| s.is_some()).count();
-                    mixed += (drawn > 0 && drawn < len) as usize;
                 }
             }
-        }
-        // Area lights (their own batch code) have five references or more, the others
-        // (the trait's default) one or two.
-        let area = !(name.contains("envmap") || *name == "point" || *name == "directional");
-        let least = if area { 2_500 } else { 900 };
-        assert!(some >= least, "{name}: only {some} samples compared");
-        if name.starts_with("one-sided") || *name == "point" {
-            assert!(none > 0, "{name}: no failed sample compared");
-        }
-        if area {
-            mixed_area += mixed;
+            // Area lights have five references or more, the others one or two.
+            let area = !(name.contains("envmap") || *name == "point" || *name == "directional");
+            let least = if area { 2_500 } else { 900 };
+            assert!(
+                some >= least,
+                "{name}, {width} lanes: only {some} samples compared"
+            );
+            if name.starts_with("one-sided") || *name == "point" {
+                assert!(none > 0, "{name}: no failed sample compared");
+            }
+            if area {
+                mixed_area += mixed;
+            }
         }
     }
+    limit_width(MAX_WIDTH);
     // Batches of area lights in which some lanes give a sample and others none (points on
     // edges, faces seen edge-on or from behind): where a lane's mask matters.
     assert!(
