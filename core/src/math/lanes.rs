@@ -554,12 +554,6 @@ pub fn by_groups<const W: usize, O>(
     }
 }
 
-/// [`by_groups`] of four, for a kernel over `Vec4`.
-#[inline(always)]
-pub fn by_fours<O>(outputs: &mut [O], kernel: impl FnMut([usize; 4], &mut [O])) {
-    by_groups::<4, O>(outputs, kernel)
-}
-
 /// The most lanes a [`Lanes`] type has.
 pub const MAX_WIDTH: usize = 8;
 
@@ -995,7 +989,7 @@ mod tests {
             let inputs: Vec<f32> = (0..len).map(|i| i as f32).collect();
             let expected: Vec<f32> = inputs.iter().map(|x| 2.0 * x).collect();
             let mut outputs = vec![f32::NAN; len];
-            by_fours(&mut outputs, |indices, out| {
+            by_groups::<4, _>(&mut outputs, |indices, out| {
                 assert!(
                     indices[out.len()..]
                         .iter()
