@@ -981,37 +981,36 @@ mod tests {
         crate::math::next_float_down(x)
     }
 
-    /// Groups of four and of eight cover every output once, a last partial group repeating its
-    /// last index in the lanes left.
+    /// Doubles `len` inputs through `by_groups::<W>`, checking that a last partial group
+    /// repeats its last index in the lanes left.
+    fn doubled_by_groups<const W: usize>(len: usize) -> Vec<f32> {
+        let inputs: Vec<f32> = (0..len).map(|i| i as f32).collect();
+        let mut outputs = vec![f32::NAN; len];
+        by_groups::<W, _>(&mut outputs, |indices, out| {
+            let last = indices[out.len() - 1];
+            assert!(indices[out.len()..].iter().all(|&i| i == last));
+            for (o, i) in out.iter_mut().zip(indices) {
+                *o = 2.0 * inputs[i];
+            }
+        });
+        outputs
+    }
+
+    /// Groups of four and of eight cover every output once.
     #[test]
     fn groups_cover_every_input_once() {
         for len in [1, 3, 4, 7, 8, 9, 17] {
-            let inputs: Vec<f32> = (0..len).map(|i| i as f32).collect();
-            let expected: Vec<f32> = inputs.iter().map(|x| 2.0 * x).collect();
-            let mut outputs = vec![f32::NAN; len];
-            by_groups::<4, _>(&mut outputs, |indices, out| {
-                assert!(
-                    indices[out.len()..]
-                        .iter()
-                        .all(|&i| i == indices[out.len() - 1])
-                );
-                for (o, i) in out.iter_mut().zip(indices) {
-                    *o = 2.0 * inputs[i];
-                }
-            });
-            assert_eq!(outputs, expected, "groups of four, {len} outputs");
-            let mut outputs = vec![f32::NAN; len];
-            by_groups::<8, _>(&mut outputs, |indices, out| {
-                assert!(
-                    indices[out.len()..]
-                        .iter()
-                        .all(|&i| i == indices[out.len() - 1])
-                );
-                for (o, i) in out.iter_mut().zip(indices) {
-                    *o = 2.0 * inputs[i];
-                }
-            });
-            assert_eq!(outputs, expected, "groups of eight, {len} outputs");
+            let expected: Vec<f32> = (0..len).map(|i| 2.0 * i as f32).collect();
+            assert_eq!(
+                doubled_by_groups::<4>(len),
+                expected,
+                "groups of four, {len} outputs"
+            );
+            assert_eq!(
+                doubled_by_groups::<8>(len),
+                expected,
+                "groups of eight, {len} outputs"
+            );
         }
     }
 }

@@ -157,18 +157,17 @@ fn sphere_area_sample<L: Lanes>(
     (p, n, solid_angle_pdf(1.0 / area, to.length(), n, wi), wi)
 }
 
-/// From outside sphere `s`: uniform in the cone it subtends, 1 − cos θ = u0 (1 − cos θmax).
+/// From outside sphere `s`: uniform in the cone it subtends, 1 − cos θ = u0 (1 − cos θmax);
+/// `to_center` is the centre less `reference`, `d2` its squared length.
 #[inline(always)]
 fn sphere_cone_sample<L: Lanes>(
     s: &Sphere,
     reference: V3<L>,
+    (to_center, d2): (V3<L>, L),
     u0: L,
     (sin_phi, cos_phi): (L, L),
 ) -> SphereSample<L> {
     let (zero, one) = (L::splat(0.0), L::splat(1.0));
-    let center = V3::splat(s.center);
-    let to_center = center - reference;
-    let d2 = to_center.length_squared();
     let (sin2_max, one_minus_cos_max) = cone(s.radius, d2);
     let one_minus_cos = u0 * one_minus_cos_max;
     let sin2 = one_minus_cos * (L::splat(2.0) - one_minus_cos);
@@ -179,7 +178,7 @@ fn sphere_cone_sample<L: Lanes>(
     let sin_alpha = (one - cos_alpha * cos_alpha).max(zero).sqrt();
     let frame = FrameLanes::from_normal(-to_center / d2.sqrt());
     let n = frame.to_world(V3::new(sin_alpha * cos_phi, sin_alpha * sin_phi, cos_alpha));
-    let p = center + n * L::splat(s.radius);
+    let p = V3::splat(s.center) + n * L::splat(s.radius);
     let wi = (p - reference).normalize_or_zero();
     let pdf = one / (L::splat(TAU) * one_minus_cos_max);
     (p, n, pdf, wi)
@@ -239,16 +238,17 @@ impl EmitterLanes for AreaEmitter {
                 (p, normal, pdf, wi, met)
             }
             Surface::Sphere(s) => {
-                let d2 = (V3::splat(s.center) - reference).length_squared();
+                let to_center = V3::splat(s.center) - reference;
+                let d2 = to_center.length_squared();
                 let inside = d2.le(L::splat(s.radius * s.radius));
                 let phi = (L::splat(TAU) * u1).sin_cos();
                 let (p, n, pdf, wi) = if !inside.any() {
-                    sphere_cone_sample(s, reference, u0, phi)
+                    sphere_cone_sample(s, reference, (to_center, d2), u0, phi)
                 } else if inside.all() {
                     sphere_area_sample(s, reference, u0, phi)
                 } else {
                     let a = sphere_area_sample(s, reference, u0, phi);
-                    let b = sphere_cone_sample(s, reference, u0, phi);
+                    let b = sphere_cone_sample(s, reference, (to_center, d2), u0, phi);
                     (
                         V3::select(inside, a.0, b.0),
                         V3::select(inside, a.1, b.1),
