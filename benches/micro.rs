@@ -516,6 +516,22 @@ fn envmap(c: &mut Criterion) {
                 }
             })
         });
+        // In batches of POINT_SAMPLES, as a packet's BSDF samples that reached the map are
+        // looked up.
+        let mut values = vec![(Rgb::ZERO, 0.0); POINT_SAMPLES];
+        for (lanes, width) in LANE_WIDTHS {
+            limit_width(width);
+            group.bench_function(format!("eval_pdf_batch{lanes}"), |b| {
+                b.iter(|| {
+                    for directions in directions.chunks(POINT_SAMPLES) {
+                        let out = &mut values[..directions.len()];
+                        map.eval_pdf_batch(std::slice::from_ref(&reference), directions, out);
+                        black_box(&out);
+                    }
+                })
+            });
+        }
+        limit_width(MAX_WIDTH);
         group.finish();
     }
 }

@@ -70,6 +70,17 @@ pub trait Emitter: Send + Sync {
     ) -> (Rgb, f32) {
         (self.eval(wi, hit), self.pdf_direction(reference, wi, hit))
     }
+    /// [`eval_pdf`](Self::eval_pdf) of each direction `wi[k]` from `reference[k]` toward no
+    /// surface of the emitter (`hit` `None`: rays that escape the scene, toward an
+    /// environment), into `out[k]`: the BSDF samples of several shading points that reached the
+    /// environment, at once. `out` is as long as `wi`, `reference` too or of length 1. The
+    /// default calls `eval_pdf` for each; an override must give what it gives, bit for bit.
+    fn eval_pdf_batch(&self, reference: &[ReferencePoint], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+        assert!(wi.len() == out.len(), "one result per direction");
+        for (k, (wi, out)) in wi.iter().zip(out).enumerate() {
+            *out = self.eval_pdf(&one_or_each(reference, k), *wi, None);
+        }
+    }
     /// A hint that `eval` and `pdf_direction` of `wi` (a ray that may escape the scene) will
     /// follow once the ray is traced: an emitter whose lookup reads a large table starts the
     /// read now, so that it overlaps the traversal. The default does nothing.

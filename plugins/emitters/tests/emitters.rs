@@ -785,3 +785,97 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
         "only {mixed_area} batches of area lights mixed samples and failed ones"
     );
 }
+
+/// `eval_pdf_batch` gives what `eval_pdf` gives, bit for bit, for the environment maps, whose
+/// batches run in lanes (nearest, turned, and bilinear in Mitsuba's orientation), at both
+/// widths and every length a group of four or eight can end with: random directions and, in
+/// some lanes, the poles, the seam (φ = ±π, where u wraps), the axes and directions just off
+/// them. Each output starts as a NaN sentinel, so an element the batch leaves unwritten fails.
+#[test]
+fn eval_pdf_batches_give_what_single_calls_give_bit_for_bit() {
+    const LENGTHS: [usize; 10] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 64];
+    let maps = [
+        ("envmap", "\"file\": \"scenes/envmaps/studio.exr\""),
+        (
+            "turned envmap",
+            "\"file\": \"scenes/envmaps/studio.exr\", \"rotation\": 30",
+        ),
+        (
+            "bilinear envmap, Mitsuba's orientation",
+            "\"file\": \"scenes/envmaps/studio.exr\", \"interpolation\": \"bilinear\", \
+             \"orientation\": \"mitsuba\", \"rotation\": -75",
+        ),
+    ];
+    let special = [
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Z,
+        Vec3::NEG_Z,
+        Vec3::new(0.0, 0.3, -1.0).normalize(),
+        Vec3::new(-1e-7, 0.3, -1.0).normalize(),
+        Vec3::new(1e-7, 0.3, -1.0).normalize(),
+        Vec3::new(1e-4, 1.0, 0.0).normalize(),
+        Vec3::new(0.0, -1.0, 1e-4).normalize(),
+    ];
+    let bits = |(le, pdf): (Rgb, f32)| (le.to_array().map(f32::to_bits), pdf.to_bits());
+    let mut s = test_sampler(13);
+    for width in [4, MAX_WIDTH] {
+        limit_width(width);
+        for (name, params) in maps {
+            let map = emitter("envmap", params, None);
+            let (mut compared, mut lit) = (0usize, 0usize);
+            let references = [
+                ReferencePoint {
+                    position: Vec3::ZERO,
+                },
+                ReferencePoint {
+                    position: Vec3::new(1.0, 2.0, 3.0),
+                },
+            ];
+            for round in 0..12 {
+                for len in LENGTHS {
+                    let wi: Vec<Vec3> = (0..len)
+                        .map(|k| match (k + round) % 3 {
+                            0 => special[(k + round) % special.len()],
+                            _ => {
+                                let u = s.next_2d();
+                                let z = 1.0 - 2.0 * u.x;
+                                let r = (1.0 - z * z).max(0.0).sqrt();
+                                let phi = std::f32::consts::TAU * u.y;
+                                Vec3::new(r * phi.cos(), r * phi.sin(), z)
+                            }
+                        })
+                        .collect();
+                    // One reference point in even rounds, one per direction in odd ones.
+                    let each: Vec<ReferencePoint> = (0..len)
+                        .map(|k| references[(round % 2) * (k % 2)])
+                        .collect();
+                    let reference_argument = match round % 2 {
+                        0 => &references[..1],
+                        _ => &each[..],
+                    };
+                    let mut out = vec![(Rgb::NAN, f32::NAN); len];
+                    map.eval_pdf_batch(reference_argument, &wi, &mut out);
+                    for (k, (&wi, &batch)) in wi.iter().zip(&out).enumerate() {
+                        let single = map.eval_pdf(&each[k], wi, None);
+                        assert_eq!(
+                            bits(batch),
+                            bits(single),
+                            "{name}, {width} lanes: batch of {len}, element {k}, ωi {wi:?}: \
+                             batch {batch:?}, single {single:?}"
+                        );
+                        compared += 1;
+                        lit += (single.1 > 0.0) as usize;
+                    }
+                }
+            }
+            assert!(
+                lit > compared / 2,
+                "{name}: only {lit} of {compared} lookups lit"
+            );
+        }
+    }
+    limit_width(MAX_WIDTH);
+}

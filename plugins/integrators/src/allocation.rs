@@ -327,11 +327,56 @@ impl<'a> LightSampling<'a> {
                     None => SampleRecord::default(),
                 });
             }
+            Self::look_up_together(scene, light, samplings, scratch);
         });
         for ((sampling, &split), value) in samplings.iter_mut().zip(splits).zip(values) {
             if let Some(sampling) = sampling {
                 *value = sampling.finish_phase(split, role, weighting, &mut ());
             }
+        }
+    }
+
+    /// The lookups that the BSDF samples of `samplings` (of light `light`) left to the end of
+    /// their phases ([`DeferredLookups`]), in one batch call for all the points: an
+    /// environment's conversions of directions to map coordinates run in lanes, where one
+    /// phase of the race scenes has one such sample or none.
+    fn look_up_together(
+        scene: &Scene,
+        light: usize,
+        samplings: &mut [Option<LightSampling>],
+        scratch: &mut BatchScratch,
+    ) {
+        if scene.environment != Some(light) {
+            return;
+        }
+        let (references, directions, values) = (
+            &mut scratch.references,
+            &mut scratch.directions,
+            &mut scratch.values,
+        );
+        references.clear();
+        directions.clear();
+        for sampling in samplings.iter().flatten() {
+            let reference = ReferencePoint {
+                position: sampling.point.hit.position,
+            };
+            for wi in sampling.buffers.deferred.directions() {
+                directions.push(wi);
+                references.push(reference);
+            }
+        }
+        if directions.is_empty() {
+            return;
+        }
+        values.clear();
+        values.resize(directions.len(), (Rgb::ZERO, 0.0));
+        scene.emitters[light].eval_pdf_batch(references, directions, values);
+        let mut values = values.iter().copied();
+        for sampling in samplings.iter_mut().flatten() {
+            let PhaseBuffers {
+                records, deferred, ..
+            } = &mut *sampling.buffers;
+            deferred.fill(records, values.by_ref());
         }
     }
 

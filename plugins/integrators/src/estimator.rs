@@ -271,7 +271,13 @@ fn reached_record(s: &BsdfSample, le: Rgb, p_light: impl FnOnce() -> f32) -> Sam
 /// reading the texel right after it waited on a cache miss (the dragon's largest single
 /// stall); the light samples' work now covers it. The records do not change.
 #[derive(Default)]
-pub struct DeferredLookups(Vec<DeferredLookup>);
+pub struct DeferredLookups {
+    lookups: Vec<DeferredLookup>,
+    /// Space for one batch call over the lookups: their directions, then the emitter's
+    /// radiance and density along each.
+    directions: Vec<Vec3>,
+    values: Vec<(Rgb, f32)>,
+}
 
 struct DeferredLookup {
     /// Index of the record in the phase's records.
@@ -294,11 +300,12 @@ impl DeferredLookups {
     ) {
         // Most phases have none (every phase of a scene without an environment): tested where
         // the phase ends, since an empty drain, and even the call, cost more than the test.
-        if !self.0.is_empty() {
+        if !self.lookups.is_empty() {
             self.look_up_each(scene, sp, light, records);
         }
     }
 
+    /// One batch call for all the lookups ([`Emitter::eval_pdf_batch`]).
     fn look_up_each(
         &mut self,
         scene: &Scene,
@@ -306,15 +313,50 @@ impl DeferredLookups {
         light: usize,
         records: &mut [SampleRecord],
     ) {
-        let emitter = scene.emitters[light].as_ref();
         let reference = ReferencePoint {
             position: sp.hit.position,
         };
-        for d in self.0.drain(..) {
-            // One conversion of the direction to map coordinates for both.
-            let (le, p_light) = emitter.eval_pdf(&reference, d.wi, None);
-            records[d.record] = reached_record(&d.sample, le, || p_light);
+        let DeferredLookups {
+            lookups,
+            directions,
+            values,
+        } = self;
+        directions.clear();
+        directions.extend(lookups.iter().map(|d| d.wi));
+        values.clear();
+        values.resize(directions.len(), (Rgb::ZERO, 0.0));
+        scene.emitters[light].eval_pdf_batch(std::slice::from_ref(&reference), directions, values);
+        fill_looked_up(lookups, records, values.iter().copied());
+    }
+
+    /// The lookups' directions in world space, in order: for one batch over the lookups of
+    /// several shading points.
+    pub(crate) fn directions(&self) -> impl Iterator<Item = Vec3> + '_ {
+        self.lookups.iter().map(|d| d.wi)
+    }
+
+    /// Fills the lookups' records from their emitter's `eval_pdf`, taken in order from
+    /// `values`, and forgets them.
+    #[inline]
+    pub(crate) fn fill(
+        &mut self,
+        records: &mut [SampleRecord],
+        values: impl Iterator<Item = (Rgb, f32)>,
+    ) {
+        // Most points of a packet have none: tested before the call.
+        if !self.lookups.is_empty() {
+            fill_looked_up(&mut self.lookups, records, values);
         }
+    }
+}
+
+fn fill_looked_up(
+    lookups: &mut Vec<DeferredLookup>,
+    records: &mut [SampleRecord],
+    values: impl Iterator<Item = (Rgb, f32)>,
+) {
+    for (d, (le, p_light)) in lookups.drain(..).zip(values) {
+        records[d.record] = reached_record(&d.sample, le, || p_light);
     }
 }
 
@@ -562,7 +604,7 @@ impl<'a> BsdfRecords<'a> {
             })),
             Reached::Environment => match deferred {
                 Some(deferred) => {
-                    deferred.0.push(DeferredLookup {
+                    deferred.lookups.push(DeferredLookup {
                         record: records.len(),
                         sample: s,
                         wi,
