@@ -137,10 +137,8 @@ impl SecondOrderMoments {
             .unwrap_or(0.5)
             .clamp(clamp[0], clamp[1])
     }
-}
 
-impl SecondOrderMoments {
-    /// Adds one record in f64, as the lanes would add it.
+    /// Adds one record's terms in f64 (the lanes compute the same terms in `f32`).
     pub fn add_record(&mut self, record: &SampleRecord) {
         if record.is_black() {
             return;
@@ -167,8 +165,8 @@ impl Observer for SecondOrderMoments {
     }
 }
 
-/// Records whose terms are summed in `f32` lanes before their sums join the f64 totals: few
-/// enough that the lanes' rounding stays that of a few dozen `f32` additions.
+/// Records whose terms are summed in `f32` lanes before their sums join the f64 totals: each of
+/// the eight slots then sums at most eight terms in `f32`.
 pub const BLOCK: usize = 64;
 
 /// The smallest sum of a block's Î₂ terms kept from the lanes: from about 10⁻³⁸ `f32` loses

@@ -269,7 +269,9 @@ fn reached_record(s: &BsdfSample, le: Rgb, p_light: impl FnOnce() -> f32) -> Sam
 /// filled ([`DeferredLookups::look_up`]). The map's texel, asked for when the ray was drawn,
 /// is read only after the phase's light samples: an unblocked ray's traversal is short, and
 /// reading the texel right after it waited on a cache miss (the dragon's largest single
-/// stall); the light samples' work now covers it. The records do not change.
+/// stall); the light samples' work now covers it. The records do not change. The lookups are
+/// one [`Emitter::eval_pdf_batch`] call (for a packet of camera samples, one call for all its
+/// points), which the environment map runs in lanes.
 #[derive(Default)]
 pub struct DeferredLookups {
     lookups: Vec<DeferredLookup>,
@@ -350,6 +352,7 @@ impl DeferredLookups {
     }
 }
 
+/// Fills the records of `lookups` from `values`, in order, and empties the list.
 fn fill_looked_up(
     lookups: &mut Vec<DeferredLookup>,
     records: &mut [SampleRecord],
