@@ -349,34 +349,22 @@ impl<'a> LightSampling<'a> {
         if scene.environment != Some(light) {
             return;
         }
-        let (references, directions, values) = (
-            &mut scratch.references,
-            &mut scratch.directions,
-            &mut scratch.values,
-        );
-        references.clear();
-        directions.clear();
+        scratch.clear_lookups();
         for sampling in samplings.iter().flatten() {
-            let reference = ReferencePoint {
-                position: sampling.point.hit.position,
-            };
-            for wi in sampling.buffers.deferred.directions() {
-                directions.push(wi);
-                references.push(reference);
-            }
+            scratch.add_lookups(sampling.point, &sampling.buffers.deferred);
         }
-        if directions.is_empty() {
+        if scratch.directions.is_empty() {
             return;
         }
-        values.clear();
-        values.resize(directions.len(), (Rgb::ZERO, 0.0));
-        scene.emitters[light].eval_pdf_batch(references, directions, values);
-        let mut values = values.iter().copied();
+        let mut values = scratch.look_up(scene.emitters[light].as_ref()).copied();
         for sampling in samplings.iter_mut().flatten() {
             let PhaseBuffers {
                 records, deferred, ..
             } = &mut *sampling.buffers;
-            deferred.fill(records, values.by_ref());
+            // Most points of a packet have none.
+            if !deferred.is_empty() {
+                deferred.fill(records, values.by_ref());
+            }
         }
     }
 

@@ -273,13 +273,7 @@ fn reached_record(s: &BsdfSample, le: Rgb, p_light: impl FnOnce() -> f32) -> Sam
 /// one [`Emitter::eval_pdf_batch`] call (for a packet of camera samples, one call for all its
 /// points), which the environment map runs in lanes.
 #[derive(Default)]
-pub struct DeferredLookups {
-    lookups: Vec<DeferredLookup>,
-    /// Space for one batch call over the lookups: their directions, then the emitter's
-    /// radiance and density along each.
-    directions: Vec<Vec3>,
-    values: Vec<(Rgb, f32)>,
-}
+pub struct DeferredLookups(Vec<DeferredLookup>);
 
 struct DeferredLookup {
     /// Index of the record in the phase's records.
@@ -302,12 +296,11 @@ impl DeferredLookups {
     ) {
         // Most phases have none (every phase of a scene without an environment): tested where
         // the phase ends, since an empty drain, and even the call, cost more than the test.
-        if !self.lookups.is_empty() {
+        if !self.0.is_empty() {
             self.look_up_each(scene, sp, light, records);
         }
     }
 
-    /// One batch call for all the lookups ([`Emitter::eval_pdf_batch`]).
     fn look_up_each(
         &mut self,
         scene: &Scene,
@@ -315,26 +308,12 @@ impl DeferredLookups {
         light: usize,
         records: &mut [SampleRecord],
     ) {
-        let reference = ReferencePoint {
-            position: sp.hit.position,
-        };
-        let DeferredLookups {
-            lookups,
-            directions,
-            values,
-        } = self;
-        directions.clear();
-        directions.extend(lookups.iter().map(|d| d.wi));
-        values.clear();
-        values.resize(directions.len(), (Rgb::ZERO, 0.0));
-        scene.emitters[light].eval_pdf_batch(std::slice::from_ref(&reference), directions, values);
-        fill_looked_up(lookups, records, values.iter().copied());
-    }
-
-    /// The lookups' directions in world space, in order: for one batch over the lookups of
-    /// several shading points.
-    pub(crate) fn directions(&self) -> impl Iterator<Item = Vec3> + '_ {
-        self.lookups.iter().map(|d| d.wi)
+        BatchScratch::with_thread_local(|scratch| {
+            scratch.clear_lookups();
+            scratch.add_lookups(sp, self);
+            let values = scratch.look_up(scene.emitters[light].as_ref());
+            self.fill(records, values.copied());
+        });
     }
 
     /// Fills the lookups' records from their emitter's `eval_pdf`, taken in order from
@@ -345,21 +324,13 @@ impl DeferredLookups {
         records: &mut [SampleRecord],
         values: impl Iterator<Item = (Rgb, f32)>,
     ) {
-        // Most points of a packet have none: tested before the call.
-        if !self.lookups.is_empty() {
-            fill_looked_up(&mut self.lookups, records, values);
+        for (d, (le, p_light)) in self.0.drain(..).zip(values) {
+            records[d.record] = reached_record(&d.sample, le, || p_light);
         }
     }
-}
 
-/// Fills the records of `lookups` from `values`, in order, and empties the list.
-fn fill_looked_up(
-    lookups: &mut Vec<DeferredLookup>,
-    records: &mut [SampleRecord],
-    values: impl Iterator<Item = (Rgb, f32)>,
-) {
-    for (d, (le, p_light)) in lookups.drain(..).zip(values) {
-        records[d.record] = reached_record(&d.sample, le, || p_light);
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
     }
 }
 
@@ -412,6 +383,33 @@ impl BatchScratch {
         self.light_samples.clear();
         self.directions.clear();
         self.values.clear();
+    }
+
+    /// Starts a batch of deferred lookups ([`DeferredLookups`]) in `references` and
+    /// `directions`.
+    pub(crate) fn clear_lookups(&mut self) {
+        self.references.clear();
+        self.directions.clear();
+    }
+
+    /// Adds the lookups `lookups` left at shading point `sp` to the batch.
+    pub(crate) fn add_lookups(&mut self, sp: &ShadingPoint, lookups: &DeferredLookups) {
+        let reference = ReferencePoint {
+            position: sp.hit.position,
+        };
+        for d in &lookups.0 {
+            self.directions.push(d.wi);
+            self.references.push(reference);
+        }
+    }
+
+    /// The batch's lookups with one [`Emitter::eval_pdf_batch`] call of `emitter`: radiance
+    /// and density along each direction, in the order they were added.
+    pub(crate) fn look_up(&mut self, emitter: &dyn Emitter) -> std::slice::Iter<'_, (Rgb, f32)> {
+        self.values.clear();
+        self.values.resize(self.directions.len(), (Rgb::ZERO, 0.0));
+        emitter.eval_pdf_batch(&self.references, &self.directions, &mut self.values);
+        self.values.iter()
     }
 
     /// The BSDF samples of the entries in `bsdf_numbers`, with `wo`, into `bsdf_samples`: one
@@ -607,7 +605,7 @@ impl<'a> BsdfRecords<'a> {
             })),
             Reached::Environment => match deferred {
                 Some(deferred) => {
-                    deferred.lookups.push(DeferredLookup {
+                    deferred.0.push(DeferredLookup {
                         record: records.len(),
                         sample: s,
                         wi,
