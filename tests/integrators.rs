@@ -1145,7 +1145,9 @@ fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
 /// Camera samples shaded as a packet (`Integrator::shade_together`, which the MIS family draws
 /// with one batch call per light and technique for all of the packet's samples) give what
 /// shading them one by one gives, bit for bit: the estimates and the AOV sums, for every
-/// integrator, N = 1, 2 and 5 (drawn together) and 8 (point by point), with and without AOVs, in packets of 16 and of 5 samples, on
+/// integrator, N = 1, 2, 5 and 8 (drawn together with eight lanes), 16 (`balance` point by
+/// point, `alpha`'s phases of 8 together) and 32 (point by point), with and without AOVs, in
+/// packets of 16 and of 5 samples, on
 /// scenes with area, sphere, delta and environment lights and with several materials (packets
 /// whose samples meet different BSDFs, and samples that miss everything).
 #[test]
@@ -1170,7 +1172,16 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
             .map(|i| glam::UVec2::new(i % scene.width, i / scene.width))
             .collect();
         for integrator in integrators() {
-            for (n, aovs) in [(1, false), (2, false), (5, false), (8, false), (2, true)] {
+            let cases = [
+                (1, false),
+                (2, false),
+                (5, false),
+                (8, false),
+                (16, false),
+                (32, false),
+                (2, true),
+            ];
+            for (n, aovs) in cases {
                 let aov_list = if aovs {
                     format!("integrator.aovs={:?}", aovs::NAMES)
                 } else {

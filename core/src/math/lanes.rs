@@ -575,6 +575,16 @@ pub fn limit_width(width: usize) {
     WIDTH_LIMIT.store(width, Ordering::Relaxed);
 }
 
+/// The lanes [`with_widest_lanes`] runs kernels with: 8 where the processor has AVX2 (and no
+/// [`limit_width`] says fewer), 4 elsewhere.
+pub fn widest_width() -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if WIDTH_LIMIT.load(Ordering::Relaxed) >= 8 && std::arch::is_x86_feature_detected!("avx2") {
+        return 8;
+    }
+    4
+}
+
 /// Runs `kernel` eight lanes wide (AVX2 registers) where the processor has AVX2, four wide
 /// (`Vec4`: SSE2, or NEON) elsewhere. Each lane computes what an `f32` would, so the results
 /// are the same either way; only the time differs.

@@ -10,11 +10,11 @@ use crate::estimator::{
 };
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
-use glam::{UVec2, Vec4};
+use glam::UVec2;
 use lumis_core::accel::PACKET_SIZE;
 use lumis_core::emitter::ReferencePoint;
 use lumis_core::math::Rgb;
-use lumis_core::math::lanes::Lanes;
+use lumis_core::math::lanes::widest_width;
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
 
@@ -47,6 +47,14 @@ impl SampleSplit {
 
     pub fn total(&self) -> u32 {
         self.n_bsdf + self.n_light
+    }
+
+    /// Whether a phase of this split fills batch kernels of `lanes` lanes by itself (as many
+    /// samples of a technique), so that drawing it alone costs less than interleaving it with
+    /// other points' phases (`balance` at N = 64 on the Veach scene, 7 rounds: together ran at
+    /// 0.905 [0.850, 0.964] of point by point's speed).
+    pub fn fills(&self, lanes: u32) -> bool {
+        self.n_bsdf >= lanes || self.n_light >= lanes
     }
 }
 
@@ -250,16 +258,45 @@ impl<'a> LightSampling<'a> {
     }
 
     /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
-    /// camera samples of a pixel), with no observer: `splits[k]` for `samplings[k]`, whose
-    /// estimate goes to `values[k]` (`None` entries skipped). The samples are drawn with one
-    /// batch call per technique for all the points (for the BSDF, one per run of points that
-    /// share a BSDF), each from its own stream in the order `phase` draws it, so that every
-    /// sampling gets what `phase` would give it, bit for bit.
-    pub fn phases_together<W: Weighting + ?Sized>(
+    /// camera samples of a pixel), each with its observer: `splits[k]` for `samplings[k]`,
+    /// seen by `observers[k]`, whose estimate goes to `values[k]` (`None` entries skipped).
+    /// Drawn together ([`phases_together`](Self::phases_together)) where no phase fills the
+    /// batch kernels' lanes by itself ([`SampleSplit::fills`] with [`widest_width`]), one by
+    /// one otherwise; either way every sampling gets what `phase` would give it, bit for bit.
+    pub fn phases<W: Weighting + ?Sized, O: Observer>(
         samplings: &mut [Option<LightSampling>],
         splits: &[SampleSplit],
         role: PhaseRole,
         weighting: &W,
+        observers: &mut [O],
+        values: &mut [Rgb],
+    ) {
+        let splits = &splits[..samplings.len()];
+        let lanes = widest_width() as u32;
+        if splits.iter().any(|split| split.fills(lanes)) {
+            let each = samplings.iter_mut().zip(splits).zip(observers).zip(values);
+            for (((sampling, &split), observer), value) in each {
+                if let Some(sampling) = sampling {
+                    *value = sampling.phase(split, role, weighting, observer);
+                }
+            }
+        } else {
+            Self::phases_together(samplings, splits, role, weighting, observers, values);
+        }
+    }
+
+    /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
+    /// camera samples of a pixel): `splits[k]` for `samplings[k]`, seen by `observers[k]`,
+    /// whose estimate goes to `values[k]` (`None` entries skipped). The samples are drawn with
+    /// one batch call per technique for all the points (for the BSDF, one per run of points
+    /// that share a BSDF), each from its own stream in the order `phase` draws it, so that
+    /// every sampling gets what `phase` would give it, bit for bit.
+    pub fn phases_together<W: Weighting + ?Sized, O: Observer>(
+        samplings: &mut [Option<LightSampling>],
+        splits: &[SampleSplit],
+        role: PhaseRole,
+        weighting: &W,
+        observers: &mut [O],
         values: &mut [Rgb],
     ) {
         let densities = densities_for(weighting);
@@ -329,9 +366,10 @@ impl<'a> LightSampling<'a> {
             }
             Self::look_up_together(scene, light, samplings, scratch);
         });
-        for ((sampling, &split), value) in samplings.iter_mut().zip(splits).zip(values) {
+        let finished = samplings.iter_mut().zip(splits).zip(observers).zip(values);
+        for (((sampling, &split), observer), value) in finished {
             if let Some(sampling) = sampling {
-                *value = sampling.finish_phase(split, role, weighting, &mut ());
+                *value = sampling.finish_phase(split, role, weighting, observer);
             }
         }
     }
@@ -491,44 +529,34 @@ impl Allocation for FixedAlpha {
         Self::estimate_of(split, value)
     }
 
-    /// One phase each, drawn together, a packet's worth at a time, when the points' phases are
-    /// too small to fill the batch kernels' lanes by themselves (fewer than four samples of a
-    /// technique); larger phases are drawn point by point, each a batch of its own, which costs
-    /// less than interleaving the points (N = 64 on the Veach scene, 7 rounds: together ran at
-    /// 0.905 [0.850, 0.964] of point by point's speed). Decided per packet, from the splits it
-    /// computes once for both uses.
+    /// One phase each, a packet's worth at a time, drawn together where they are small
+    /// ([`LightSampling::phases`]). Each split is computed once: it asks the BSDF whether it is
+    /// a Dirac lobe.
     fn estimate_together<W: Weighting + ?Sized>(
         &self,
         samplings: &mut [Option<LightSampling>],
         weighting: &W,
         estimates: &mut [LightEstimate],
     ) {
-        let lanes = <Vec4 as Lanes>::WIDTH as u32;
         let chunks = samplings
             .chunks_mut(PACKET_SIZE)
             .zip(estimates.chunks_mut(PACKET_SIZE));
         for (samplings, estimates) in chunks {
-            // Each split once: it asks the BSDF whether it is a Dirac lobe.
-            let mut splits = [SampleSplit::new(0.0, 1); PACKET_SIZE];
-            let mut fills_lanes = false;
+            let mut splits = [SampleSplit::new(0.0, 0); PACKET_SIZE];
             for (split, sampling) in splits.iter_mut().zip(samplings.iter()) {
                 if let Some(sampling) = sampling {
                     *split = self.split(sampling);
-                    fills_lanes |= split.n_bsdf >= lanes || split.n_light >= lanes;
                 }
-            }
-            if fills_lanes {
-                estimate_each(self, samplings, weighting, estimates);
-                continue;
             }
             let splits = &splits[..samplings.len()];
             let mut values = [Rgb::ZERO; PACKET_SIZE];
             let values = &mut values[..samplings.len()];
-            LightSampling::phases_together(
+            LightSampling::phases(
                 samplings,
                 splits,
                 PhaseRole::ESTIMATE,
                 weighting,
+                &mut [(); PACKET_SIZE],
                 values,
             );
             let results = samplings.iter().zip(splits).zip(values.iter());

@@ -27,6 +27,7 @@ use crate::estimator::SampleRecord;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::{PerSample, Weighting};
+use lumis_core::accel::PACKET_SIZE;
 use lumis_core::integrator::Integrator;
 use lumis_core::math::lanes::{LaneKernel, Lanes, MAX_WIDTH, Mask, V3, with_widest_lanes};
 use lumis_core::math::{Rgb, luminance, luminance_lanes};
@@ -282,43 +283,132 @@ impl Mode {
         choose: impl FnOnce(&LightSampling, &O) -> f64,
     ) -> LightEstimate {
         let n = sampling.samples();
+        let (split, role) = self.first_phase(n);
+        let first = sampling.phase(split, role, weighting, observer);
+        let alpha = choose(sampling, observer);
+        let second = self
+            .second_phase(n, alpha)
+            .map(|(split, role)| sampling.phase(split, role, weighting, &mut ()));
+        LightEstimate {
+            value: self.combine(n, first, second),
+            alpha,
+        }
+    }
+
+    /// [`estimate`](Self::estimate) for the samplings of one light at the shading points of
+    /// one packet (at most [`PACKET_SIZE`] camera samples of a pixel), with `observers[k]` for
+    /// `samplings[k]` and its estimate in `estimates[k]`: each phase of the points drawn
+    /// together where the phases are small ([`LightSampling::phases`]), so that α's two phases
+    /// of N/2 samples fill the batch kernels' lanes as one phase of N does. Every sampling gets
+    /// what `estimate` would give it, bit for bit.
+    pub fn estimate_together<W: Weighting + ?Sized, O: Observer>(
+        self,
+        samplings: &mut [Option<LightSampling>],
+        weighting: &W,
+        observers: &mut [O],
+        choose: impl Fn(&LightSampling, &O) -> f64,
+        estimates: &mut [LightEstimate],
+    ) {
+        let len = samplings.len();
+        assert!(len <= PACKET_SIZE, "{len} samplings: at most a packet");
+        let mut lit = samplings.iter().flatten();
+        let Some(n) = lit.next().map(LightSampling::samples) else {
+            return;
+        };
+        // The phases' roles depend on N: drawn together only for one N.
+        if lit.any(|s| s.samples() != n) {
+            let each = samplings.iter_mut().zip(observers).zip(estimates);
+            for ((sampling, observer), estimate) in each {
+                if let Some(sampling) = sampling {
+                    *estimate = self.estimate(sampling, weighting, observer, &choose);
+                }
+            }
+            return;
+        }
+        let (first_split, first_role) = self.first_phase(n);
+        let mut first = [Rgb::ZERO; PACKET_SIZE];
+        LightSampling::phases(
+            samplings,
+            &[first_split; PACKET_SIZE],
+            first_role,
+            weighting,
+            observers,
+            &mut first[..len],
+        );
+        let mut alphas = [0.5; PACKET_SIZE];
+        let mut splits = [SampleSplit::new(0.0, 0); PACKET_SIZE];
+        let mut second_role = None;
+        for (k, sampling) in samplings.iter().enumerate() {
+            if let Some(sampling) = sampling {
+                alphas[k] = choose(sampling, &observers[k]);
+                if let Some((split, role)) = self.second_phase(n, alphas[k]) {
+                    (splits[k], second_role) = (split, Some(role));
+                }
+            }
+        }
+        let mut second = [Rgb::ZERO; PACKET_SIZE];
+        if let Some(role) = second_role {
+            LightSampling::phases(
+                samplings,
+                &splits,
+                role,
+                weighting,
+                &mut [(); PACKET_SIZE],
+                &mut second[..len],
+            );
+        }
+        for (k, estimate) in estimates.iter_mut().enumerate() {
+            if samplings[k].is_some() {
+                *estimate = LightEstimate {
+                    value: self.combine(n, first[k], second_role.map(|_| second[k])),
+                    alpha: alphas[k],
+                };
+            }
+        }
+    }
+
+    /// The split and role of the phase at α = ½ for N = `n`.
+    fn first_phase(self, n: u32) -> (SampleSplit, PhaseRole) {
         match self {
             Mode::Integrated { alpha_samples } => {
-                let m = alpha_samples.min(n);
-                let rest = n - m;
+                let rest = n - alpha_samples.min(n);
                 // V[L_1] is measured on the samples at α̂, unless fewer than two are left.
-                let first_role = PhaseRole {
+                let role = PhaseRole {
                     counted: true,
                     measured: rest < 2,
                 };
-                let first =
-                    sampling.phase(SampleSplit::new(0.5, m), first_role, weighting, observer);
-                let alpha = choose(sampling, observer);
-                if rest == 0 {
-                    return LightEstimate {
-                        value: first,
-                        alpha,
-                    };
-                }
-                let second_role = PhaseRole {
+                (SampleSplit::new(0.5, alpha_samples.min(n)), role)
+            }
+            Mode::Preprocessed { alpha_samples } => {
+                (SampleSplit::new(0.5, alpha_samples), PhaseRole::PILOT)
+            }
+        }
+    }
+
+    /// The split and role of the phase at α̂ = `alpha` for N = `n`, if there is one.
+    fn second_phase(self, n: u32, alpha: f64) -> Option<(SampleSplit, PhaseRole)> {
+        match self {
+            Mode::Integrated { alpha_samples } => {
+                let rest = n - alpha_samples.min(n);
+                let role = PhaseRole {
                     counted: true,
                     measured: rest >= 2,
                 };
-                let split = SampleSplit::new(alpha, rest);
-                let second = sampling.phase(split, second_role, weighting, &mut ());
-                LightEstimate {
-                    value: (first * m as f32 + second * rest as f32) / n as f32,
-                    alpha,
-                }
+                (rest > 0).then(|| (SampleSplit::new(alpha, rest), role))
             }
-            Mode::Preprocessed { alpha_samples } => {
-                let pilot = SampleSplit::new(0.5, alpha_samples);
-                sampling.phase(pilot, PhaseRole::PILOT, weighting, observer);
-                let alpha = choose(sampling, observer);
-                let split = SampleSplit::new(alpha, n);
-                let value = sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ());
-                LightEstimate { value, alpha }
+            Mode::Preprocessed { .. } => Some((SampleSplit::new(alpha, n), PhaseRole::ESTIMATE)),
+        }
+    }
+
+    /// The estimate from the phases' estimates `first` and `second` (if there was one).
+    fn combine(self, n: u32, first: Rgb, second: Option<Rgb>) -> Rgb {
+        match (self, second) {
+            (Mode::Integrated { alpha_samples }, Some(second)) => {
+                let m = alpha_samples.min(n);
+                (first * m as f32 + second * (n - m) as f32) / n as f32
             }
+            (Mode::Integrated { .. }, None) => first,
+            (Mode::Preprocessed { .. }, second) => second.unwrap_or(first),
         }
     }
 }
@@ -334,6 +424,27 @@ impl Allocation for SecondOrderAlpha {
             .estimate(sampling, weighting, &mut moments, |_, moments| {
                 moments.alpha(self.clamp)
             })
+    }
+
+    fn estimate_together<W: Weighting + ?Sized>(
+        &self,
+        samplings: &mut [Option<LightSampling>],
+        weighting: &W,
+        estimates: &mut [LightEstimate],
+    ) {
+        for (samplings, estimates) in samplings
+            .chunks_mut(PACKET_SIZE)
+            .zip(estimates.chunks_mut(PACKET_SIZE))
+        {
+            let mut moments = [SecondOrderMoments::default(); PACKET_SIZE];
+            self.mode.estimate_together(
+                samplings,
+                weighting,
+                &mut moments,
+                |_, moments| moments.alpha(self.clamp),
+                estimates,
+            );
+        }
     }
 }
 
