@@ -577,6 +577,7 @@ pub fn limit_width(width: usize) {
 
 /// The lanes [`with_widest_lanes`] runs kernels with: 8 where the processor has AVX2 (and no
 /// [`limit_width`] says fewer), 4 elsewhere.
+#[inline]
 pub fn widest_width() -> usize {
     #[cfg(target_arch = "x86_64")]
     if WIDTH_LIMIT.load(Ordering::Relaxed) >= 8 && std::arch::is_x86_feature_detected!("avx2") {

@@ -529,29 +529,36 @@ impl Allocation for FixedAlpha {
         Self::estimate_of(split, value)
     }
 
-    /// One phase each, a packet's worth at a time, drawn together where they are small
-    /// ([`LightSampling::phases`]). Each split is computed once: it asks the BSDF whether it is
-    /// a Dirac lobe.
+    /// One phase each, a packet's worth at a time, drawn together where they are small, as
+    /// [`LightSampling::phases`] decides; written out here so that each split is computed once
+    /// (it asks the BSDF whether it is a Dirac lobe) for both uses.
     fn estimate_together<W: Weighting + ?Sized>(
         &self,
         samplings: &mut [Option<LightSampling>],
         weighting: &W,
         estimates: &mut [LightEstimate],
     ) {
+        let lanes = widest_width() as u32;
         let chunks = samplings
             .chunks_mut(PACKET_SIZE)
             .zip(estimates.chunks_mut(PACKET_SIZE));
         for (samplings, estimates) in chunks {
             let mut splits = [SampleSplit::new(0.0, 0); PACKET_SIZE];
+            let mut fills_lanes = false;
             for (split, sampling) in splits.iter_mut().zip(samplings.iter()) {
                 if let Some(sampling) = sampling {
                     *split = self.split(sampling);
+                    fills_lanes |= split.fills(lanes);
                 }
+            }
+            if fills_lanes {
+                estimate_each(self, samplings, weighting, estimates);
+                continue;
             }
             let splits = &splits[..samplings.len()];
             let mut values = [Rgb::ZERO; PACKET_SIZE];
             let values = &mut values[..samplings.len()];
-            LightSampling::phases(
+            LightSampling::phases_together(
                 samplings,
                 splits,
                 PhaseRole::ESTIMATE,
