@@ -295,22 +295,39 @@ impl Mode {
         }
     }
 
-    /// [`estimate`](Self::estimate) for the samplings of one light at the shading points of
-    /// one packet (at most [`PACKET_SIZE`] camera samples of a pixel), with `observers[k]` for
-    /// `samplings[k]` and its estimate in `estimates[k]`: each phase of the points drawn
-    /// together where the phases are small ([`LightSampling::phases`]), so that α's two phases
-    /// of N/2 samples fill the batch kernels' lanes as one phase of N does. Every sampling gets
-    /// what `estimate` would give it, bit for bit.
-    pub fn estimate_together<W: Weighting + ?Sized, O: Observer>(
+    /// [`estimate`](Self::estimate) for the samplings of one light at several shading points
+    /// (the camera samples of a pixel), each with a new observer, its estimate in
+    /// `estimates[k]`: a packet ([`PACKET_SIZE`] points) at a time, each phase of its points
+    /// drawn together where the phases are small ([`LightSampling::phases`]), so that α's two
+    /// phases of N/2 samples fill the batch kernels' lanes as one phase of N does. Every
+    /// sampling gets what `estimate` would give it, bit for bit.
+    pub fn estimate_together<W: Weighting + ?Sized, O: Observer + Default>(
         self,
         samplings: &mut [Option<LightSampling>],
         weighting: &W,
-        observers: &mut [O],
         choose: impl Fn(&LightSampling, &O) -> f64,
         estimates: &mut [LightEstimate],
     ) {
+        let packets = samplings
+            .chunks_mut(PACKET_SIZE)
+            .zip(estimates.chunks_mut(PACKET_SIZE));
+        for (samplings, estimates) in packets {
+            let mut observers: [O; PACKET_SIZE] = std::array::from_fn(|_| O::default());
+            self.estimate_packet(samplings, weighting, &mut observers, &choose, estimates);
+        }
+    }
+
+    /// [`estimate_together`](Self::estimate_together) for one packet, `observers[k]` seeing
+    /// `samplings[k]`'s first phase.
+    fn estimate_packet<W: Weighting + ?Sized, O: Observer>(
+        self,
+        samplings: &mut [Option<LightSampling>],
+        weighting: &W,
+        observers: &mut [O; PACKET_SIZE],
+        choose: &impl Fn(&LightSampling, &O) -> f64,
+        estimates: &mut [LightEstimate],
+    ) {
         let len = samplings.len();
-        assert!(len <= PACKET_SIZE, "{len} samplings: at most a packet");
         let mut lit = samplings.iter().flatten();
         let Some(n) = lit.next().map(LightSampling::samples) else {
             return;
@@ -320,7 +337,7 @@ impl Mode {
             let each = samplings.iter_mut().zip(observers).zip(estimates);
             for ((sampling, observer), estimate) in each {
                 if let Some(sampling) = sampling {
-                    *estimate = self.estimate(sampling, weighting, observer, &choose);
+                    *estimate = self.estimate(sampling, weighting, observer, choose);
                 }
             }
             return;
@@ -432,19 +449,12 @@ impl Allocation for SecondOrderAlpha {
         weighting: &W,
         estimates: &mut [LightEstimate],
     ) {
-        for (samplings, estimates) in samplings
-            .chunks_mut(PACKET_SIZE)
-            .zip(estimates.chunks_mut(PACKET_SIZE))
-        {
-            let mut moments = [SecondOrderMoments::default(); PACKET_SIZE];
-            self.mode.estimate_together(
-                samplings,
-                weighting,
-                &mut moments,
-                |_, moments| moments.alpha(self.clamp),
-                estimates,
-            );
-        }
+        self.mode.estimate_together(
+            samplings,
+            weighting,
+            |_, moments: &SecondOrderMoments| moments.alpha(self.clamp),
+            estimates,
+        );
     }
 }
 

@@ -32,7 +32,6 @@ use crate::balance::Balance;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::moments::{Objective, PilotSamples};
 use crate::weighting::{PerSample, Weighting};
-use lumis_core::accel::PACKET_SIZE;
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -167,18 +166,12 @@ impl<R: AlphaRule> Allocation for PilotAlpha<R> {
         weighting: &W,
         estimates: &mut [LightEstimate],
     ) {
-        for (samplings, estimates) in samplings
-            .chunks_mut(PACKET_SIZE)
-            .zip(estimates.chunks_mut(PACKET_SIZE))
-        {
-            self.mode.estimate_together(
-                samplings,
-                weighting,
-                &mut [(); PACKET_SIZE],
-                |sampling, _| self.alpha_of_last_phase(sampling),
-                estimates,
-            );
-        }
+        self.mode.estimate_together(
+            samplings,
+            weighting,
+            |sampling, _: &()| self.alpha_of_last_phase(sampling),
+            estimates,
+        );
     }
 
     fn preprocess(&mut self, scene: &Scene) {
