@@ -592,8 +592,8 @@ pub fn widest_width() -> usize {
 #[inline(always)]
 pub fn with_widest_lanes<K: LaneKernel>(kernel: K) -> K::Output {
     #[cfg(target_arch = "x86_64")]
-    if WIDTH_LIMIT.load(Ordering::Relaxed) >= 8 && std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor has AVX2.
+    if widest_width() == 8 {
+        // SAFETY: the processor has AVX2 (`widest_width` is 8 only then).
         return unsafe { eight::run_avx2(kernel) };
     }
     kernel.run::<Vec4, 4>()
@@ -867,6 +867,7 @@ mod tests {
     fn lanes_of_every_width_compute_as_one() {
         assert_eq!(ComputeAsOne.run::<Vec4, 4>(), 4);
         let widest = with_widest_lanes(ComputeAsOne);
+        assert_eq!(widest_width(), widest);
         #[cfg(target_arch = "x86_64")]
         assert_eq!(
             widest,
