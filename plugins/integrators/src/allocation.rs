@@ -423,6 +423,7 @@ impl<'a> LightSampling<'a> {
 
     /// The rest of a phase whose records are drawn: the deferred lookups, the weights, the
     /// observer and the AOV statistics.
+    #[inline(always)]
     fn finish_phase<W: Weighting + ?Sized, O: Observer + ?Sized>(
         &mut self,
         split: SampleSplit,
