@@ -274,7 +274,11 @@ impl<'a> LightSampling<'a> {
     ) {
         let splits = &splits[..samplings.len()];
         let lanes = widest_width() as u32;
-        if splits.iter().any(|split| split.fills(lanes)) {
+        let points = samplings.iter().zip(splits);
+        if points
+            .filter(|(s, _)| s.is_some())
+            .any(|(_, split)| split.fills(lanes))
+        {
             let each = samplings.iter_mut().zip(splits).zip(observers).zip(values);
             for (((sampling, &split), observer), value) in each {
                 if let Some(sampling) = sampling {
@@ -533,7 +537,8 @@ impl Allocation for FixedAlpha {
 
     /// One phase each, a packet's worth at a time, drawn together where they are small, as
     /// [`LightSampling::phases`] decides; written out here so that each split is computed once
-    /// (it asks the BSDF whether it is a Dirac lobe) for both uses.
+    /// (it asks the BSDF whether it is a Dirac lobe) for both uses. (Through `phases`, the race
+    /// configuration took 0.3–0.8 % more instructions.)
     fn estimate_together<W: Weighting + ?Sized>(
         &self,
         samplings: &mut [Option<LightSampling>],

@@ -286,9 +286,9 @@ impl Mode {
         let (split, role) = self.first_phase(n);
         let first = sampling.phase(split, role, weighting, observer);
         let alpha = choose(sampling, observer);
-        let second = self
-            .second_phase(n, alpha)
-            .map(|(split, role)| sampling.phase(split, role, weighting, &mut ()));
+        let second = self.second_phase(n).map(|(count, role)| {
+            sampling.phase(SampleSplit::new(alpha, count), role, weighting, &mut ())
+        });
         LightEstimate {
             value: self.combine(n, first, second),
             alpha,
@@ -318,7 +318,8 @@ impl Mode {
     }
 
     /// [`estimate_together`](Self::estimate_together) for one packet, `observers[k]` seeing
-    /// `samplings[k]`'s first phase.
+    /// `samplings[k]`'s first phase. The samplings share N (the integrator's), on which the
+    /// phases' splits and roles depend.
     fn estimate_packet<W: Weighting + ?Sized, O: Observer>(
         self,
         samplings: &mut [Option<LightSampling>],
@@ -332,16 +333,10 @@ impl Mode {
         let Some(n) = lit.next().map(LightSampling::samples) else {
             return;
         };
-        // The phases' roles depend on N: drawn together only for one N.
-        if lit.any(|s| s.samples() != n) {
-            let each = samplings.iter_mut().zip(observers).zip(estimates);
-            for ((sampling, observer), estimate) in each {
-                if let Some(sampling) = sampling {
-                    *estimate = self.estimate(sampling, weighting, observer, choose);
-                }
-            }
-            return;
-        }
+        assert!(
+            lit.all(|s| s.samples() == n),
+            "the samplings of a packet share N"
+        );
         let (first_split, first_role) = self.first_phase(n);
         let mut first = [Rgb::ZERO; PACKET_SIZE];
         LightSampling::phases(
@@ -353,21 +348,17 @@ impl Mode {
             &mut first[..len],
         );
         let mut alphas = [0.5; PACKET_SIZE];
-        let mut splits = [SampleSplit::new(0.0, 0); PACKET_SIZE];
-        let mut second_role = None;
-        for (k, sampling) in samplings.iter().enumerate() {
+        for ((alpha, sampling), observer) in alphas.iter_mut().zip(&*samplings).zip(&*observers) {
             if let Some(sampling) = sampling {
-                alphas[k] = choose(sampling, &observers[k]);
-                if let Some((split, role)) = self.second_phase(n, alphas[k]) {
-                    (splits[k], second_role) = (split, Some(role));
-                }
+                *alpha = choose(sampling, observer);
             }
         }
+        let second_phase = self.second_phase(n);
         let mut second = [Rgb::ZERO; PACKET_SIZE];
-        if let Some(role) = second_role {
+        if let Some((count, role)) = second_phase {
             LightSampling::phases(
                 samplings,
-                &splits,
+                &alphas.map(|alpha| SampleSplit::new(alpha, count)),
                 role,
                 weighting,
                 &mut [(); PACKET_SIZE],
@@ -377,7 +368,7 @@ impl Mode {
         for (k, estimate) in estimates.iter_mut().enumerate() {
             if samplings[k].is_some() {
                 *estimate = LightEstimate {
-                    value: self.combine(n, first[k], second_role.map(|_| second[k])),
+                    value: self.combine(n, first[k], second_phase.map(|_| second[k])),
                     alpha: alphas[k],
                 };
             }
@@ -402,8 +393,9 @@ impl Mode {
         }
     }
 
-    /// The split and role of the phase at α̂ = `alpha` for N = `n`, if there is one.
-    fn second_phase(self, n: u32, alpha: f64) -> Option<(SampleSplit, PhaseRole)> {
+    /// The samples and role of the phase at α̂ for N = `n`, if there is one (its split is
+    /// `SampleSplit::new(α̂, samples)`).
+    fn second_phase(self, n: u32) -> Option<(u32, PhaseRole)> {
         match self {
             Mode::Integrated { alpha_samples } => {
                 let rest = n - alpha_samples.min(n);
@@ -411,9 +403,9 @@ impl Mode {
                     counted: true,
                     measured: rest >= 2,
                 };
-                (rest > 0).then(|| (SampleSplit::new(alpha, rest), role))
+                (rest > 0).then_some((rest, role))
             }
-            Mode::Preprocessed { .. } => Some((SampleSplit::new(alpha, n), PhaseRole::ESTIMATE)),
+            Mode::Preprocessed { .. } => Some((n, PhaseRole::ESTIMATE)),
         }
     }
 
