@@ -13,7 +13,8 @@ use lumis::integrators::alpha::SecondOrderMoments;
 use lumis::integrators::balance::Balance;
 use lumis::integrators::estimator::{SampleRecord, ShadingPoint};
 use lumis::integrators::phase::{Observer, Phase, PhaseRole};
-use lumis::integrators::weighting::PerSample;
+use lumis::integrators::power::Power;
+use lumis::integrators::weighting::{PerSample, Weighting};
 use lumis::math::Rgb;
 use lumis::math::lanes::{MAX_WIDTH, limit_width};
 use lumis::sampler::Sampler;
@@ -605,6 +606,52 @@ fn alpha_estimator(c: &mut Criterion) {
             black_box(moments)
         })
     });
+    group.finish();
+    weighting(c, scene, &sp, pixel, &mut buffers);
+}
+
+/// The `power` weighting alone on recorded phases at the Veach plate: 256 phases of one sample
+/// per technique (the race scenes' `samples: 2`, weighed record by record) and the four lights'
+/// phases of 32 + 32 samples (weighed in lanes).
+fn weighting(
+    c: &mut Criterion,
+    scene: &lumis::scene::Scene,
+    sp: &ShadingPoint,
+    pixel: glam::UVec2,
+    buffers: &mut PhaseBuffers,
+) {
+    let power = PerSample(Power);
+    let mut group = c.benchmark_group("weighting");
+    for (name, samples, phases) in [("power_1_plus_1", 2, 256), ("power_32_plus_32", 64, 4)] {
+        let split = SampleSplit::new(0.5, samples);
+        let mut recorded = RecordedPhases::default();
+        let mut sampler = Sampler::new(0, 0, 0);
+        for index in 0..phases {
+            let light = index % scene.emitters.len();
+            let mut sampling =
+                LightSampling::new(scene, sp, light, pixel, samples, &mut sampler, buffers);
+            sampling.phase(split, PhaseRole::ESTIMATE, &power, &mut recorded);
+        }
+        group.throughput(Throughput::Elements(phases as u64 * samples as u64));
+        group.bench_function(name, |b| {
+            let mut contributions = Vec::new();
+            b.iter(|| {
+                let mut sum = Rgb::ZERO;
+                for (records, _) in &recorded.phases {
+                    let phase = Phase {
+                        pixel,
+                        light: 0,
+                        split,
+                        records,
+                    };
+                    contributions.clear();
+                    contributions.resize(records.len(), Rgb::ZERO);
+                    sum += power.weigh(black_box(&phase), &mut contributions);
+                }
+                black_box(sum)
+            })
+        });
+    }
     group.finish();
 }
 

@@ -68,16 +68,34 @@ impl<H: Heuristic> PerSample<H> {
     /// heuristic itself, bit for bit). Contributions and their sum as [`Weighting::weigh`].
     ///
     /// Weights are computed four records at a time over the whole phase, BSDF records then
-    /// light records, each lane taking its technique's products: a phase of a few samples (two,
-    /// in the race scenes) fills one vector rather than one per technique, which halves the
-    /// divisions the pass is bound by. Each lane computes what it would in a vector of its
-    /// technique alone, and the records are added in order, so the estimate is the same.
+    /// light records, each lane taking its technique's products: a phase of a few samples fills
+    /// one vector rather than one per technique, which halves the divisions the pass is bound
+    /// by. Each lane computes what it would in a vector of its technique alone, and the records
+    /// are added in order, so the estimate is the same. A phase of at most [`SCALAR_RECORDS`]
+    /// records (one sample per technique, as in the race scenes) is weighed record by record
+    /// instead, with the same arithmetic: its lit records are one or two, and the vectors' set-up
+    /// cost more than their divisions saved.
     pub fn weigh_scaled(&self, phase: &Phase, contributions: &mut [Rgb], factors: [f32; 2]) -> Rgb {
         let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
         let (k_b, k_l) = (factors[0] * n_b, factors[1] * n_l);
-        // w / (n p) = (w / (k p)) · (k / n): exactly w / (k p) when k = n.
-        let (bsdf_factor, light_factor) = (Vec4::splat(k_b / n_b), Vec4::splat(k_l / n_l));
+        // w / (n p) = (w / (k p)) · (k / n): exactly w / (k p) when k = n, where the factor
+        // is 1 (k / n would be exactly 1 too, so the division is skipped).
+        let own_factor = |factor: f32, k: f32, n: f32| if factor == 1.0 { 1.0 } else { k / n };
+        let (bsdf_factor, light_factor) = (
+            own_factor(factors[0], k_b, n_b),
+            own_factor(factors[1], k_l, n_l),
+        );
         let n_bsdf = phase.split.n_bsdf as usize;
+        if phase.records.len() <= SCALAR_RECORDS {
+            let products = Products {
+                n: [n_b, n_l],
+                k: [k_b, k_l],
+                factor: [bsdf_factor, light_factor],
+                n_bsdf,
+            };
+            return self.weigh_each(phase, contributions, products);
+        }
+        let (bsdf_factor, light_factor) = (Vec4::splat(bsdf_factor), Vec4::splat(light_factor));
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
         let mut value = Rgb::ZERO;
@@ -123,6 +141,56 @@ impl<H: Heuristic> PerSample<H> {
         }
         value
     }
+}
+
+impl<H: Heuristic> PerSample<H> {
+    /// [`weigh_scaled`](Self::weigh_scaled) record by record, for phases of at most
+    /// [`SCALAR_RECORDS`] records: `weight` gives each lane of `weight4` bit for bit, so each
+    /// lit record gets the vector path's contribution, without its set-up for the lanes.
+    #[inline(always)]
+    fn weigh_each(&self, phase: &Phase, contributions: &mut [Rgb], products: Products) -> Rgb {
+        let Products {
+            n,
+            k,
+            factor,
+            n_bsdf,
+        } = products;
+        let mut value = Rgb::ZERO;
+        for (i, (r, c)) in phase.records.iter().zip(contributions).enumerate() {
+            if r.is_black() {
+                continue;
+            }
+            // Technique 0 is the BSDF's, 1 the light's.
+            let (own, other) = if i < n_bsdf { (0, 1) } else { (1, 0) };
+            *c = if r.delta {
+                r.f / n[own]
+            } else {
+                let p = [r.p_bsdf, r.p_light];
+                let (mine, theirs) = (p[own] * k[own], p[other] * k[other]);
+                let w = if mine == theirs {
+                    0.5
+                } else {
+                    self.0.weight(mine, theirs)
+                };
+                r.f * (w / mine * factor[own])
+            };
+            value += *c;
+        }
+        value
+    }
+}
+
+/// The largest phase weighed record by record: the race scenes' phases of one sample per
+/// technique spent most of the vector path's time on its set-up.
+const SCALAR_RECORDS: usize = 2;
+
+/// Per technique (BSDF, light): n, k = c·n and k / n, with the BSDF's record count.
+#[derive(Clone, Copy)]
+struct Products {
+    n: [f32; 2],
+    k: [f32; 2],
+    factor: [f32; 2],
+    n_bsdf: usize,
 }
 
 impl<H: Heuristic> Weighting for PerSample<H> {
@@ -231,6 +299,118 @@ mod tests {
             );
             assert_eq!(sum, value, "contributions add up to the estimate");
         }
+    }
+
+    /// Phases of at most `SCALAR_RECORDS` records are weighed record by record: each
+    /// contribution must be bit for bit what the lanes' formula gives (`weight4`, then
+    /// w / (k p) · k / n), for every built-in heuristic, with and without factors, for lit,
+    /// black and Dirac records, equal, zero and infinite products.
+    #[test]
+    fn small_phases_weigh_as_the_lanes_do() {
+        let heuristics: [&dyn Heuristic; 4] = [
+            &Balance,
+            &crate::power::Power,
+            &crate::max::Maximum,
+            &crate::cutoff::Cutoff { threshold: 0.1 },
+        ];
+        let densities = [0.0f32, 1e-30, 0.37, 1.0, 2.5, 1e30, f32::INFINITY];
+        let splits = [(1, 1), (2, 0), (0, 2), (1, 0), (0, 1)];
+        let mut checked = 0;
+        for h in heuristics {
+            for factors in [[1.0f32, 1.0], [0.3, 1.7]] {
+                for (n_bsdf, n_light) in splits {
+                    let split = SampleSplit { n_bsdf, n_light };
+                    for &p in &densities {
+                        for &q in &densities {
+                            for kind in 0..3 {
+                                let record = |i: usize| SampleRecord {
+                                    f: if kind == 1 && i == 0 {
+                                        Rgb::ZERO
+                                    } else {
+                                        Rgb::new(0.25, 0.5 + i as f32, 3.0)
+                                    },
+                                    p_bsdf: if i == 0 { p } else { q },
+                                    p_light: if i == 0 { q } else { p },
+                                    delta: kind == 2 && i == 0 && n_bsdf > 0,
+                                };
+                                let records: Vec<_> =
+                                    (0..split.total() as usize).map(record).collect();
+                                let phase = Phase::of(split, &records);
+                                let mut got = vec![Rgb::ZERO; records.len()];
+                                let value = weigh_scaled_with(h, &phase, &mut got, factors);
+                                let expected = lanes_formula(h, &records, split, factors);
+                                for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
+                                    assert_eq!(
+                                        g.to_array().map(f32::to_bits),
+                                        e.to_array().map(f32::to_bits),
+                                        "record {i} of {records:?}, {split:?}, factors {factors:?}"
+                                    );
+                                }
+                                let sum = expected.iter().fold(Rgb::ZERO, |s, &c| s + c);
+                                assert_eq!(
+                                    value.to_array().map(f32::to_bits),
+                                    sum.to_array().map(f32::to_bits)
+                                );
+                                checked += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 4 * 2 * 5 * 7 * 7 * 3);
+    }
+
+    /// `PerSample(h).weigh_scaled` for a heuristic behind a reference.
+    fn weigh_scaled_with(
+        h: &dyn Heuristic,
+        phase: &Phase,
+        contributions: &mut [Rgb],
+        factors: [f32; 2],
+    ) -> Rgb {
+        struct Dyn<'a>(&'a dyn Heuristic);
+        impl Heuristic for Dyn<'_> {
+            fn weight(&self, mine: f32, other: f32) -> f32 {
+                self.0.weight(mine, other)
+            }
+            fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+                self.0.weight4(mine, other)
+            }
+        }
+        PerSample(Dyn(h)).weigh_scaled(phase, contributions, factors)
+    }
+
+    /// Each record's contribution by the vector path's formula, one lane at a time.
+    fn lanes_formula(
+        h: &dyn Heuristic,
+        records: &[SampleRecord],
+        split: SampleSplit,
+        factors: [f32; 2],
+    ) -> Vec<Rgb> {
+        let n = [split.n_bsdf as f32, split.n_light as f32];
+        let k = [factors[0] * n[0], factors[1] * n[1]];
+        records
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let t = usize::from(i >= split.n_bsdf as usize);
+                if r.is_black() {
+                    Rgb::ZERO
+                } else if r.delta {
+                    r.f / n[t]
+                } else {
+                    let p = [r.p_bsdf, r.p_light];
+                    let (mine, other) = (p[t] * k[t], p[1 - t] * k[1 - t]);
+                    let w = Vec4::select(
+                        Vec4::splat(mine).cmpeq(Vec4::splat(other)),
+                        Vec4::splat(0.5),
+                        h.weight4(Vec4::splat(mine), Vec4::splat(other)),
+                    );
+                    let scale = w / Vec4::splat(mine) * Vec4::splat(k[t] / n[t]);
+                    r.f * scale.x
+                }
+            })
+            .collect()
     }
 
     /// A heuristic that only gives `weight` (as a third-party one may) gets `weight4` lane by
