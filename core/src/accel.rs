@@ -258,6 +258,26 @@ fn intersect_triangle(
     }
 }
 
+/// Whether some of the edge functions are negative and some positive (the ray passes outside
+/// the triangle), zeros counting as neither. The signs are compared in lanes and tested with
+/// one branch: on a mesh of many small triangles the answer is hard to predict, and a branch
+/// per comparison mispredicted more often (the dragon rendered 5 % faster without them).
+#[inline(always)]
+fn signs_differ(e0: f32, e1: f32, e2: f32) -> bool {
+    let e = Vec3A::new(e0, e1, e2);
+    e.cmplt(Vec3A::ZERO).any() & e.cmpgt(Vec3A::ZERO).any()
+}
+
+/// Whether t = `t_scaled` / `det` lies in (0, `t_max`], without dividing: `t_scaled` and `det`
+/// are made positive by `det`'s sign (exactly) and compared with one branch, as the facing of
+/// a mesh's triangles, hence `det`'s sign, is hard to predict. `det` is finite and not zero.
+#[inline(always)]
+fn scaled_t_in_range(t_scaled: f32, det: f32, t_max: f32) -> bool {
+    const SIGN_BIT: u32 = 1 << 31;
+    let toward = f32::from_bits(t_scaled.to_bits() ^ (det.to_bits() & SIGN_BIT));
+    !((toward <= 0.0) | (toward > t_max * det.abs()))
+}
+
 /// [`intersect_triangle`] for the permutation (KX, KY, KZ) of [`RayShear`].
 #[inline(always)]
 fn intersect_triangle_permuted<const KX: usize, const KY: usize, const KZ: usize>(
@@ -289,7 +309,7 @@ fn intersect_triangle_permuted<const KX: usize, const KY: usize, const KZ: usize
         e1 = (p2.x as f64 * p0.y as f64 - p2.y as f64 * p0.x as f64) as f32;
         e2 = (p0.x as f64 * p1.y as f64 - p0.y as f64 * p1.x as f64) as f32;
     }
-    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+    if signs_differ(e0, e1, e2) {
         return None;
     }
     let det = e0 + e1 + e2;
@@ -300,10 +320,7 @@ fn intersect_triangle_permuted<const KX: usize, const KY: usize, const KZ: usize
     p1.z *= sz;
     p2.z *= sz;
     let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
-    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
-        return None;
-    }
-    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+    if !scaled_t_in_range(t_scaled, det, t_max) {
         return None;
     }
     let inv_det = 1.0 / det;
@@ -1448,6 +1465,57 @@ mod tests {
             "only {} packets formed",
             packets.get()
         );
+    }
+
+    /// The triangle test's sign and range tests, written for one branch each, answer as
+    /// their forms with a branch per comparison, on random values and on zeros of both signs,
+    /// infinities, NaN and the range's ends (t = t_max exactly, t = 0).
+    #[test]
+    fn the_triangle_tests_answer_as_their_branching_forms() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            2.5,
+            -2.5,
+            1e-30,
+            -1e-30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            3.0,
+            -3.0,
+        ];
+        let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
+        let mut values: Vec<f32> = specials.to_vec();
+        values.extend((0..24).map(|_| (sampler.next_1d() - 0.5) * 8.0));
+        let mut in_range = [0usize; 2];
+        for &a in &values {
+            for &b in &values {
+                for &c in &values {
+                    let branching =
+                        (a < 0.0 || b < 0.0 || c < 0.0) && (a > 0.0 || b > 0.0 || c > 0.0);
+                    assert_eq!(signs_differ(a, b, c), branching, "signs of {a}, {b}, {c}");
+                    // (t_scaled, det, t_max) = (a, b, |c|), det finite and not zero.
+                    let (t_scaled, det, t_max) = (a, b, c.abs());
+                    if det == 0.0 || !det.is_finite() {
+                        continue;
+                    }
+                    let outside = (det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det))
+                        || (det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det));
+                    let inside = scaled_t_in_range(t_scaled, det, t_max);
+                    assert_eq!(
+                        inside, !outside,
+                        "t_scaled {t_scaled}, det {det}, t_max {t_max}"
+                    );
+                    in_range[usize::from(inside)] += 1;
+                }
+            }
+        }
+        // Both answers occur often, for both signs of det (t = t_max exactly among them).
+        assert!(scaled_t_in_range(-3.0, -1.0, 3.0) && !scaled_t_in_range(-3.0, -1.0, 2.5));
+        assert!(in_range.iter().all(|&n| n > 1000), "{in_range:?}");
     }
 
     /// [`Geometry::may_meet`] on random scenes and rays: true for every shape the ray hits
