@@ -13,7 +13,10 @@ pub struct Frame {
 
 impl Frame {
     /// Builds a frame around a unit normal with the branchless construction of Duff et al. 2017
-    /// ("Building an orthonormal basis, revisited"), exact for n = ±z.
+    /// ("Building an orthonormal basis, revisited"), exact for n = ±z. Inlined: returned through
+    /// memory, its frame was read back by the caller in wider pieces than it had been written
+    /// in, which stalls until the stores reach the cache.
+    #[inline]
     pub fn from_normal(n: Vec3) -> Self {
         let f = FrameLanes::<f32>::from_normal(V3::splat(n));
         Frame {
