@@ -42,6 +42,19 @@ pub struct Ray {
     pub t_max: f32,
 }
 
+/// `v` in lanes, read coordinate by coordinate. A query's ray is most often written just before
+/// it is asked, by stores of one or two coordinates each, and a wider read of several of them
+/// cannot be forwarded from those stores: it waits until they reach the cache. (That wait took
+/// the largest share of `may_meet`'s time, and of the dragon's occlusion queries' set-up.) The
+/// reads are volatile so that the compiler does not merge them again. The result must stay in
+/// registers: a copy in memory would be read in lanes again.
+#[inline(always)]
+fn read_coordinates(v: &Vec3) -> Vec3A {
+    // SAFETY: each pointer is to one f32 of `v`, valid and aligned.
+    let read = |c: &f32| unsafe { std::ptr::read_volatile(c) };
+    Vec3A::new(read(&v.x), read(&v.y), read(&v.z))
+}
+
 /// A ray–surface intersection.
 #[derive(Clone, Copy, Debug)]
 pub struct Intersection {
@@ -508,11 +521,11 @@ pub fn ray_meets_triangle(ray: &Ray, p: &[Vec3; 3]) -> bool {
 /// so the answers are the same. An axis whose 1/d is not finite is left to the scalar test.
 #[inline]
 fn may_meet_box(ray: &Ray, lo: Vec3, hi: Vec3) -> bool {
-    let inv = Vec3A::ONE / Vec3A::from(ray.direction);
+    let inv = Vec3A::ONE / read_coordinates(&ray.direction);
     if !inv.is_finite() {
         return may_meet_slabs(ray, lo, hi);
     }
-    let origin = Vec3A::from(ray.origin);
+    let origin = read_coordinates(&ray.origin);
     let (a, b) = (
         (Vec3A::from(lo) - origin) * inv,
         (Vec3A::from(hi) - origin) * inv,
@@ -1035,7 +1048,7 @@ impl Geometry {
 
     /// Whether anything blocks the ray before `t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.blocked_by(ray, |_| true)
+        self.blocked_by(ray, true, |_| true)
     }
 
     /// Whether anything but shape `ignored` blocks the ray before `t_max`: for a shadow ray
@@ -1045,19 +1058,28 @@ impl Geometry {
     pub fn occluded_by_others(&self, ray: &Ray, ignored: Option<u32>) -> bool {
         match ignored {
             None => self.occluded(ray),
-            Some(ignored) => self.blocked_by(ray, |primitive| primitive.shape() != ignored),
+            // Inlined into the caller, which most often holds the ray in registers.
+            Some(ignored) => self.blocked_by(ray, false, |primitive| primitive.shape() != ignored),
         }
     }
 
-    /// Whether a primitive that `counts` blocks the ray before `t_max`.
+    /// Whether a primitive that `counts` blocks the ray before `t_max`. With `fresh` (behind a
+    /// call, where the ray was just written) the traversal is set up from the ray's coordinates
+    /// read one by one ([`read_coordinates`]); the primitive tests, later, read the ray itself.
     #[inline(always)]
-    fn blocked_by(&self, ray: &Ray, counts: impl Fn(&Primitive) -> bool) -> bool {
+    fn blocked_by(&self, ray: &Ray, fresh: bool, counts: impl Fn(&Primitive) -> bool) -> bool {
         count_rays(1);
         if self.primitives.is_empty() {
             return false;
         }
-        let shear = RayShear::new(ray.direction);
-        let boxes = RayBoxTest::new(ray.origin, ray.direction);
+        let (origin, direction) = if fresh {
+            let origin = Vec3::from(read_coordinates(&ray.origin));
+            (origin, Vec3::from(read_coordinates(&ray.direction)))
+        } else {
+            (ray.origin, ray.direction)
+        };
+        let shear = RayShear::new(direction);
+        let boxes = RayBoxTest::new(origin, direction);
         // Inlined, as in `closest_hit_among`.
         self.bvh.any_hit(
             &boxes,
