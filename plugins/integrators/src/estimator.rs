@@ -38,6 +38,10 @@ pub struct ShadingPoint<'a> {
 }
 
 impl<'a> ShadingPoint<'a> {
+    /// The shading point of `hit`, seen from `wo_world`. Inlined, so that it is built where it
+    /// is kept: built apart, it was copied there, and the copy read it back in 64-byte pieces
+    /// just after its narrower stores, waiting for them to reach the cache.
+    #[inline(always)]
     pub fn new(scene: &'a Scene, hit: Intersection, wo_world: Vec3) -> Self {
         let flip = hit.geometric_normal.dot(wo_world) < 0.0;
         let sign = if flip { -1.0 } else { 1.0 };
