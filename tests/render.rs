@@ -821,3 +821,58 @@ fn cancelling_stops_at_the_next_packet_and_keeps_finished_pixels() {
     let counts = film.aov("count").unwrap().channel("samples").unwrap();
     assert_eq!(counts[..3], [1000.0, 1000.0, 0.0]);
 }
+
+/// A pixel's camera samples made four rays at a time (`CameraSample::extend_pixel`, which the
+/// render loop uses) are each what `CameraSample::new` makes, bit for bit: stream, film ray,
+/// index and pixel, for runs of 1 to 9 samples from several first indices (whole fours, a lone
+/// sample left, three left), jittered and not.
+#[test]
+fn camera_samples_made_four_at_a_time_are_made_as_one_at_a_time() {
+    use lumis::integrator::CameraSample;
+    let path = repo_path("scenes/cornell.ron");
+    let mut compared = 0;
+    for jitter in ["sampler.jitter=true", "sampler.jitter=false"] {
+        let loaded = load(&path, &["film.width=24", "film.height=16", jitter])
+            .unwrap_or_else(|e| panic!("{e}"));
+        let scene = &loaded.scene;
+        for pixel in [
+            glam::UVec2::new(0, 0),
+            glam::UVec2::new(23, 15),
+            glam::UVec2::new(7, 9),
+        ] {
+            for first in [0u32, 3, 16] {
+                for count in 1..=9u32 {
+                    let mut made = Vec::new();
+                    CameraSample::extend_pixel(scene, pixel, first..first + count, &mut made);
+                    assert_eq!(made.len(), count as usize);
+                    for (k, mut sample) in made.into_iter().enumerate() {
+                        let index = first + k as u32;
+                        let mut alone = CameraSample::new(scene, pixel, index);
+                        assert_eq!((sample.pixel, sample.index), (pixel, index));
+                        let ray_bits = |s: &CameraSample| {
+                            let r = s.ray;
+                            let coordinates = [r.origin.to_array(), r.direction.to_array()];
+                            let all = coordinates.concat().into_iter().chain([r.t_max]);
+                            all.map(f32::to_bits).collect::<Vec<_>>()
+                        };
+                        assert_eq!(
+                            ray_bits(&sample),
+                            ray_bits(&alone),
+                            "{jitter}, {pixel}, sample {index}"
+                        );
+                        let numbers = |s: &mut CameraSample| -> Vec<u32> {
+                            (0..4).map(|_| s.sampler.next_1d().to_bits()).collect()
+                        };
+                        assert_eq!(
+                            numbers(&mut sample),
+                            numbers(&mut alone),
+                            "stream of sample {index}"
+                        );
+                        compared += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(compared, 2 * 3 * 3 * 45);
+}

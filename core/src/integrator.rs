@@ -12,7 +12,7 @@ use crate::math::Rgb;
 use crate::output::Aov;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec3};
 
 /// One camera sample of one pixel: its random stream and its primary ray.
 pub struct CameraSample {
@@ -61,19 +61,35 @@ impl CameraSample {
                 samples.push(Self::new(scene, pixel, first));
                 continue;
             }
-            // Lanes past the last sample repeat it, and are dropped.
-            let streams: [(Sampler, Vec2); 4] = std::array::from_fn(|lane| {
-                Self::stream(scene, pixel, first + lane.min(count - 1) as u32)
-            });
-            let rays = scene.camera.generate_rays(streams.each_ref().map(|s| s.1));
-            let lanes = streams.into_iter().zip(rays).zip(first..).take(count);
-            samples.extend(lanes.map(|(((sampler, _), ray), index)| CameraSample {
-                pixel,
-                index,
-                sampler,
-                ray,
-                traced: None,
-            }));
+            // Each sample is pushed with its stream, its ray filled in after: moved through an
+            // iterator of the four, the streams and rays were copied in bulk just after being
+            // written, which waits for the stores.
+            let start = samples.len();
+            let mut films = [Vec2::ZERO; 4];
+            for (lane, index) in (first..first + count as u32).enumerate() {
+                let (sampler, film) = Self::stream(scene, pixel, index);
+                films[lane] = film;
+                samples.push(CameraSample {
+                    pixel,
+                    index,
+                    sampler,
+                    // Filled in below.
+                    ray: Ray {
+                        origin: Vec3::ZERO,
+                        direction: Vec3::ZERO,
+                        t_max: 0.0,
+                    },
+                    traced: None,
+                });
+            }
+            // Lanes past the last sample repeat its film; their rays are dropped.
+            for lane in count..4 {
+                films[lane] = films[count - 1];
+            }
+            let rays = scene.camera.generate_rays(films);
+            for (sample, ray) in samples[start..].iter_mut().zip(rays) {
+                sample.ray = ray;
+            }
         }
     }
 
