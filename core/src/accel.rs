@@ -912,7 +912,7 @@ impl Geometry {
             let first_hits = &mut first_hits[..rays.len()];
             self.first_hits(rays, first_hits);
             for ((hit, first), ray) in hits.iter_mut().zip(first_hits.iter()).zip(rays) {
-                *hit = first.map(|first| self.surface(ray, &first));
+                *hit = first.map(|first| self.surface_in_place(ray, &first));
             }
         }
     }
@@ -993,6 +993,13 @@ impl Geometry {
 
     /// The intersection record of a hit [`Geometry::first_hit`] found along `ray`.
     pub fn surface(&self, ray: &Ray, hit: &FirstHit) -> Intersection {
+        self.surface_in_place(ray, hit)
+    }
+
+    /// [`surface`](Self::surface), inlined where a packet's records are kept: returned from a
+    /// call, each was copied there in wider reads than its stores, which waited for them.
+    #[inline(always)]
+    fn surface_in_place(&self, ray: &Ray, hit: &FirstHit) -> Intersection {
         let t = hit.t;
         match self.primitives[hit.slot as usize] {
             Primitive::Triangle { p, shape, index } => {
