@@ -594,13 +594,7 @@ fn alpha_estimator(c: &mut Criterion) {
     group.bench_function("alpha_terms_alone", |b| {
         b.iter(|| {
             let mut moments = SecondOrderMoments::default();
-            for (records, contributions) in &recorded.phases {
-                let phase = Phase {
-                    pixel,
-                    light: 0,
-                    split,
-                    records,
-                };
+            for (phase, contributions) in recorded.phases(pixel, split) {
                 moments.observe(black_box(&phase), contributions);
             }
             black_box(moments)
@@ -637,15 +631,9 @@ fn weighting(
             let mut contributions = Vec::new();
             b.iter(|| {
                 let mut sum = Rgb::ZERO;
-                for (records, _) in &recorded.phases {
-                    let phase = Phase {
-                        pixel,
-                        light: 0,
-                        split,
-                        records,
-                    };
+                for (phase, _) in recorded.phases(pixel, split) {
                     contributions.clear();
-                    contributions.resize(records.len(), Rgb::ZERO);
+                    contributions.resize(phase.records.len(), Rgb::ZERO);
                     sum += power.weigh(black_box(&phase), &mut contributions);
                 }
                 black_box(sum)
@@ -659,6 +647,26 @@ fn weighting(
 #[derive(Default)]
 struct RecordedPhases {
     phases: Vec<(Vec<SampleRecord>, Vec<Rgb>)>,
+}
+
+impl RecordedPhases {
+    /// The recorded phases again, as light 0's at `pixel` with `split`, with their
+    /// contributions.
+    fn phases(
+        &self,
+        pixel: glam::UVec2,
+        split: SampleSplit,
+    ) -> impl Iterator<Item = (Phase<'_>, &[Rgb])> {
+        self.phases.iter().map(move |(records, contributions)| {
+            let phase = Phase {
+                pixel,
+                light: 0,
+                split,
+                records,
+            };
+            (phase, contributions.as_slice())
+        })
+    }
 }
 
 impl Observer for RecordedPhases {
