@@ -274,7 +274,8 @@ fn intersect_triangle(
 /// Whether some of the edge functions are negative and some positive (the ray passes outside
 /// the triangle), zeros counting as neither. The signs are compared in lanes and tested with
 /// one branch: on a mesh of many small triangles the answer is hard to predict, and a branch
-/// per comparison mispredicted more often (the dragon rendered 5 % faster without them).
+/// per comparison mispredicted more often (without them, with the range test below, the dragon
+/// rendered × 1.051 [1.046, 1.057] faster).
 #[inline(always)]
 fn signs_differ(e0: f32, e1: f32, e2: f32) -> bool {
     let e = Vec3A::new(e0, e1, e2);

@@ -11,6 +11,7 @@
 //! linear system over the batch) fit as well as per-sample [`Heuristic`]s, which [`PerSample`]
 //! turns into a weighting.
 
+use crate::allocation::SampleSplit;
 use crate::phase::Phase;
 use glam::Vec4;
 use lumis_core::math::Rgb;
@@ -76,26 +77,20 @@ impl<H: Heuristic> PerSample<H> {
     /// instead, with the same arithmetic: its lit records are one or two, and the vectors' set-up
     /// cost more than their divisions saved.
     pub fn weigh_scaled(&self, phase: &Phase, contributions: &mut [Rgb], factors: [f32; 2]) -> Rgb {
-        let (n_b, n_l) = (phase.split.n_bsdf as f32, phase.split.n_light as f32);
-        let (k_b, k_l) = (factors[0] * n_b, factors[1] * n_l);
-        // w / (n p) = (w / (k p)) · (k / n): exactly w / (k p) when k = n, where the factor
-        // is 1 (k / n would be exactly 1 too, so the division is skipped).
-        let own_factor = |factor: f32, k: f32, n: f32| if factor == 1.0 { 1.0 } else { k / n };
-        let (bsdf_factor, light_factor) = (
-            own_factor(factors[0], k_b, n_b),
-            own_factor(factors[1], k_l, n_l),
-        );
-        let n_bsdf = phase.split.n_bsdf as usize;
+        let products = Products::of(phase.split, factors);
         if phase.records.len() <= SCALAR_RECORDS {
-            let products = Products {
-                n: [n_b, n_l],
-                k: [k_b, k_l],
-                factor: [bsdf_factor, light_factor],
-                n_bsdf,
-            };
-            return self.weigh_each(phase, contributions, products);
+            self.weigh_each(phase, contributions, products)
+        } else {
+            self.weigh_in_lanes(phase, contributions, products)
         }
-        let (bsdf_factor, light_factor) = (Vec4::splat(bsdf_factor), Vec4::splat(light_factor));
+    }
+
+    /// [`weigh_scaled`](Self::weigh_scaled) four records at a time.
+    #[inline(always)]
+    fn weigh_in_lanes(&self, phase: &Phase, contributions: &mut [Rgb], products: Products) -> Rgb {
+        let Products { n, k, factor } = products;
+        let (bsdf_factor, light_factor) = (Vec4::splat(factor[0]), Vec4::splat(factor[1]));
+        let n_bsdf = phase.split.n_bsdf as usize;
         // Black records keep the zero their contribution starts with (adding it to the sum
         // would change no bit).
         let mut value = Rgb::ZERO;
@@ -111,8 +106,8 @@ impl<H: Heuristic> PerSample<H> {
             }
             // n·p of each technique: a BSDF record's own product is `bsdf`, its other
             // `light`, and the reverse for a light record.
-            let bsdf = Vec4::from_array(p_bsdf) * k_b;
-            let light = Vec4::from_array(p_light) * k_l;
+            let bsdf = Vec4::from_array(p_bsdf) * k[0];
+            let light = Vec4::from_array(p_light) * k[1];
             let bsdf_lanes = n_bsdf.saturating_sub(first);
             let is_bsdf = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(bsdf_lanes as f32));
             let mine = Vec4::select(is_bsdf, bsdf, light);
@@ -132,29 +127,24 @@ impl<H: Heuristic> PerSample<H> {
                 *c = if !r.delta {
                     r.f * scale
                 } else if i < bsdf_lanes {
-                    r.f / n_b
+                    r.f / n[0]
                 } else {
-                    r.f / n_l
+                    r.f / n[1]
                 };
                 value += *c;
             }
         }
         value
     }
-}
 
-impl<H: Heuristic> PerSample<H> {
     /// [`weigh_scaled`](Self::weigh_scaled) record by record, for phases of at most
     /// [`SCALAR_RECORDS`] records: `weight` gives each lane of `weight4` bit for bit, so each
-    /// lit record gets the vector path's contribution, without its set-up for the lanes.
+    /// lit record gets [`weigh_in_lanes`](Self::weigh_in_lanes)' contribution, without its
+    /// set-up for the lanes.
     #[inline(always)]
     fn weigh_each(&self, phase: &Phase, contributions: &mut [Rgb], products: Products) -> Rgb {
-        let Products {
-            n,
-            k,
-            factor,
-            n_bsdf,
-        } = products;
+        let Products { n, k, factor } = products;
+        let n_bsdf = phase.split.n_bsdf as usize;
         let mut value = Rgb::ZERO;
         for (i, (r, c)) in phase.records.iter().zip(contributions).enumerate() {
             if r.is_black() {
@@ -181,16 +171,28 @@ impl<H: Heuristic> PerSample<H> {
 }
 
 /// The largest phase weighed record by record: the race scenes' phases of one sample per
-/// technique spent most of the vector path's time on its set-up.
+/// technique spent most of the lanes' time on their set-up.
 const SCALAR_RECORDS: usize = 2;
 
-/// Per technique (BSDF, light): n, k = c·n and k / n, with the BSDF's record count.
+/// Per technique (BSDF, light) of one phase: n, k = c·n and the factor k / n of w / (k p) in
+/// w / (n p).
 #[derive(Clone, Copy)]
 struct Products {
     n: [f32; 2],
     k: [f32; 2],
     factor: [f32; 2],
-    n_bsdf: usize,
+}
+
+impl Products {
+    /// For `split` with the factors c = `factors`. Where c is 1, k / n is exactly 1 and the
+    /// division is skipped.
+    #[inline(always)]
+    fn of(split: SampleSplit, factors: [f32; 2]) -> Self {
+        let n = [split.n_bsdf as f32, split.n_light as f32];
+        let k = [factors[0] * n[0], factors[1] * n[1]];
+        let factor = std::array::from_fn(|t| if factors[t] == 1.0 { 1.0 } else { k[t] / n[t] });
+        Products { n, k, factor }
+    }
 }
 
 impl<H: Heuristic> Weighting for PerSample<H> {
@@ -301,10 +303,10 @@ mod tests {
         }
     }
 
-    /// Phases of at most `SCALAR_RECORDS` records are weighed record by record: each
-    /// contribution must be bit for bit what the lanes' formula gives (`weight4`, then
-    /// w / (k p) · k / n), for every built-in heuristic, with and without factors, for lit,
-    /// black and Dirac records, equal, zero and infinite products.
+    /// Phases of at most `SCALAR_RECORDS` records are weighed record by record
+    /// (`weigh_each`): each contribution and the estimate must be bit for bit what the lanes
+    /// (`weigh_in_lanes`) give the same phase, for every built-in heuristic, with and without
+    /// factors, for lit, black and Dirac records, equal, zero and infinite products.
     #[test]
     fn small_phases_weigh_as_the_lanes_do() {
         let heuristics: [&dyn Heuristic; 4] = [
@@ -315,102 +317,60 @@ mod tests {
         ];
         let densities = [0.0f32, 1e-30, 0.37, 1.0, 2.5, 1e30, f32::INFINITY];
         let splits = [(1, 1), (2, 0), (0, 2), (1, 0), (0, 1)];
+        let bits = |v: &[Rgb]| -> Vec<[u32; 3]> {
+            v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
+        };
         let mut checked = 0;
-        for h in heuristics {
-            for factors in [[1.0f32, 1.0], [0.3, 1.7]] {
-                for (n_bsdf, n_light) in splits {
-                    let split = SampleSplit { n_bsdf, n_light };
-                    for &p in &densities {
-                        for &q in &densities {
-                            for kind in 0..3 {
-                                let record = |i: usize| SampleRecord {
-                                    f: if kind == 1 && i == 0 {
-                                        Rgb::ZERO
-                                    } else {
-                                        Rgb::new(0.25, 0.5 + i as f32, 3.0)
-                                    },
-                                    p_bsdf: if i == 0 { p } else { q },
-                                    p_light: if i == 0 { q } else { p },
-                                    delta: kind == 2 && i == 0 && n_bsdf > 0,
-                                };
-                                let records: Vec<_> =
-                                    (0..split.total() as usize).map(record).collect();
-                                let phase = Phase::of(split, &records);
-                                let mut got = vec![Rgb::ZERO; records.len()];
-                                let value = weigh_scaled_with(h, &phase, &mut got, factors);
-                                let expected = lanes_formula(h, &records, split, factors);
-                                for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
-                                    assert_eq!(
-                                        g.to_array().map(f32::to_bits),
-                                        e.to_array().map(f32::to_bits),
-                                        "record {i} of {records:?}, {split:?}, factors {factors:?}"
-                                    );
-                                }
-                                let sum = expected.iter().fold(Rgb::ZERO, |s, &c| s + c);
-                                assert_eq!(
-                                    value.to_array().map(f32::to_bits),
-                                    sum.to_array().map(f32::to_bits)
-                                );
-                                checked += 1;
-                            }
-                        }
-                    }
+        for (h, factors) in heuristics
+            .into_iter()
+            .flat_map(|h| [[1.0f32, 1.0], [0.3, 1.7]].map(|f| (h, f)))
+        {
+            let weighting = PerSample(DynHeuristic(h));
+            for (n_bsdf, n_light) in splits {
+                let split = SampleSplit { n_bsdf, n_light };
+                let products = Products::of(split, factors);
+                for (&p, &q, kind) in densities.iter().flat_map(|p| {
+                    densities
+                        .iter()
+                        .flat_map(move |q| (0..3).map(move |k| (p, q, k)))
+                }) {
+                    let record = |i: usize| SampleRecord {
+                        f: if kind == 1 && i == 0 {
+                            Rgb::ZERO
+                        } else {
+                            Rgb::new(0.25, 0.5 + i as f32, 3.0)
+                        },
+                        p_bsdf: if i == 0 { p } else { q },
+                        p_light: if i == 0 { q } else { p },
+                        delta: kind == 2 && i == 0 && n_bsdf > 0,
+                    };
+                    let records: Vec<_> = (0..split.total() as usize).map(record).collect();
+                    let phase = Phase::of(split, &records);
+                    let mut each = vec![Rgb::ZERO; records.len()];
+                    let mut lanes = each.clone();
+                    let value_each = weighting.weigh_each(&phase, &mut each, products);
+                    let value_lanes = weighting.weigh_in_lanes(&phase, &mut lanes, products);
+                    let case = format!("{records:?}, {split:?}, factors {factors:?}");
+                    assert_eq!(bits(&each), bits(&lanes), "{case}");
+                    assert_eq!(bits(&[value_each]), bits(&[value_lanes]), "{case}");
+                    checked += 1;
                 }
             }
         }
         assert_eq!(checked, 4 * 2 * 5 * 7 * 7 * 3);
     }
 
-    /// `PerSample(h).weigh_scaled` for a heuristic behind a reference.
-    fn weigh_scaled_with(
-        h: &dyn Heuristic,
-        phase: &Phase,
-        contributions: &mut [Rgb],
-        factors: [f32; 2],
-    ) -> Rgb {
-        struct Dyn<'a>(&'a dyn Heuristic);
-        impl Heuristic for Dyn<'_> {
-            fn weight(&self, mine: f32, other: f32) -> f32 {
-                self.0.weight(mine, other)
-            }
-            fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-                self.0.weight4(mine, other)
-            }
-        }
-        PerSample(Dyn(h)).weigh_scaled(phase, contributions, factors)
-    }
+    /// A built-in heuristic behind a reference, as `PerSample` takes it by value.
+    struct DynHeuristic<'a>(&'a dyn Heuristic);
 
-    /// Each record's contribution by the vector path's formula, one lane at a time.
-    fn lanes_formula(
-        h: &dyn Heuristic,
-        records: &[SampleRecord],
-        split: SampleSplit,
-        factors: [f32; 2],
-    ) -> Vec<Rgb> {
-        let n = [split.n_bsdf as f32, split.n_light as f32];
-        let k = [factors[0] * n[0], factors[1] * n[1]];
-        records
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let t = usize::from(i >= split.n_bsdf as usize);
-                if r.is_black() {
-                    Rgb::ZERO
-                } else if r.delta {
-                    r.f / n[t]
-                } else {
-                    let p = [r.p_bsdf, r.p_light];
-                    let (mine, other) = (p[t] * k[t], p[1 - t] * k[1 - t]);
-                    let w = Vec4::select(
-                        Vec4::splat(mine).cmpeq(Vec4::splat(other)),
-                        Vec4::splat(0.5),
-                        h.weight4(Vec4::splat(mine), Vec4::splat(other)),
-                    );
-                    let scale = w / Vec4::splat(mine) * Vec4::splat(k[t] / n[t]);
-                    r.f * scale.x
-                }
-            })
-            .collect()
+    impl Heuristic for DynHeuristic<'_> {
+        fn weight(&self, mine: f32, other: f32) -> f32 {
+            self.0.weight(mine, other)
+        }
+
+        fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+            self.0.weight4(mine, other)
+        }
     }
 
     /// A heuristic that only gives `weight` (as a third-party one may) gets `weight4` lane by
