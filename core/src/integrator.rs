@@ -118,6 +118,14 @@ impl CameraSample {
         }
     }
 
+    /// The primary ray's closest intersection as [`CameraSample::trace_together`] found it, read
+    /// in place; `None` if it was not traced. (A copy of the whole record, read back field by
+    /// field just after, waits for its stores: the copy's and the reads' widths differ.)
+    #[inline]
+    pub fn traced(&self) -> Option<&Option<Intersection>> {
+        self.traced.as_ref()
+    }
+
     /// Traces the primary rays of `samples` as packets ([`Geometry::intersect_packet`]): the
     /// camera samples of one pixel share the camera's origin and nearly a direction, so they
     /// visit the same nodes. Each sample keeps its hit for [`CameraSample::intersect`].

