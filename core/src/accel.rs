@@ -8,7 +8,7 @@
 
 use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use crate::math::{gamma, next_float_down, next_float_up};
-use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal_a};
+use crate::scene::shapes::{ShapeGeometry, Sphere, unit_normal_a, unit_normals_a};
 use crate::wide_bvh::{PacketBoxTest, RayBoxTest, WideBvh, sphere_box};
 use glam::{Vec3, Vec3A, Vec4};
 use obvhs::Boundable;
@@ -912,8 +912,16 @@ impl Geometry {
             let mut first_hits = [None; PACKET_SIZE];
             let first_hits = &mut first_hits[..rays.len()];
             self.first_hits(rays, first_hits);
-            for ((hit, first), ray) in hits.iter_mut().zip(first_hits.iter()).zip(rays) {
-                *hit = first.map(|first| self.surface_in_place(ray, &first));
+            let mut normals = [Vec3A::ZERO; PACKET_SIZE];
+            let normals = &mut normals[..rays.len()];
+            self.triangle_normals(first_hits, normals);
+            let surfaces = hits
+                .iter_mut()
+                .zip(first_hits.iter())
+                .zip(rays)
+                .zip(normals);
+            for (((hit, first), ray), &mut normal) in surfaces {
+                *hit = first.map(|first| self.surface_in_place(ray, &first, Some(normal)));
             }
         }
     }
@@ -992,15 +1000,37 @@ impl Geometry {
         }
     }
 
+    /// The unit geometric normals of the triangles that `hits` met, computed together
+    /// ([`unit_normals_a`]); zero for a miss or a sphere.
+    fn triangle_normals(&self, hits: &[Option<FirstHit>], normals: &mut [Vec3A]) {
+        for (normal, hit) in normals.iter_mut().zip(hits) {
+            if let Some(hit) = hit
+                && let Primitive::Triangle { p, .. } = &self.primitives[hit.slot as usize]
+            {
+                // Each vertex read from the primitive itself: `p.map` copied them to the stack
+                // first, and read them back in lanes across the copy's stores.
+                let vertex = |i: usize| Vec3A::from(p[i]);
+                *normal = (vertex(1) - vertex(0)).cross(vertex(2) - vertex(0));
+            }
+        }
+        unit_normals_a(normals);
+    }
+
     /// The intersection record of a hit [`Geometry::first_hit`] found along `ray`.
     pub fn surface(&self, ray: &Ray, hit: &FirstHit) -> Intersection {
-        self.surface_in_place(ray, hit)
+        self.surface_in_place(ray, hit, None)
     }
 
     /// [`surface`](Self::surface), inlined where a packet's records are kept: returned from a
-    /// call, each was copied there in wider reads than its stores, which waited for them.
+    /// call, each was copied there in wider reads than its stores, which waited for them. A
+    /// triangle's unit geometric normal is `triangle_normal` where the caller computed it.
     #[inline(always)]
-    fn surface_in_place(&self, ray: &Ray, hit: &FirstHit) -> Intersection {
+    fn surface_in_place(
+        &self,
+        ray: &Ray,
+        hit: &FirstHit,
+        triangle_normal: Option<Vec3A>,
+    ) -> Intersection {
         let t = hit.t;
         match self.primitives[hit.slot as usize] {
             Primitive::Triangle { p, shape, index } => {
@@ -1010,7 +1040,8 @@ impl Geometry {
                 let (q0, q1, q2) = (b0 * p0, b1 * p1, b2 * p2);
                 let position = Vec3::from(q0 + q1 + q2);
                 let error = Vec3::from(gamma(7) * (q0.abs() + q1.abs() + q2.abs()));
-                let geometric_normal = unit_normal_a((p1 - p0).cross(p2 - p0));
+                let geometric_normal =
+                    triangle_normal.unwrap_or_else(|| unit_normal_a((p1 - p0).cross(p2 - p0)));
                 let mut shading_normal = geometric_normal;
                 if let ShapeGeometry::Mesh(mesh) = &self.shapes[shape as usize]
                     && let Some(normals) = &mesh.normals
@@ -1432,7 +1463,8 @@ mod tests {
 
     /// Packets of rays from one origin (nearly parallel as a pixel's camera rays, or spread
     /// so that some do not share direction signs and are traced alone) get, ray by ray, the
-    /// intersection [`Geometry::intersect`] gives, bit for bit.
+    /// intersection record [`Geometry::intersect`] gives, bit for bit (the normals made
+    /// together in lanes among them).
     #[test]
     fn packets_hit_what_each_ray_hits_alone() {
         let packets = Cell::new(0usize);
@@ -1473,13 +1505,13 @@ mod tests {
                         geometry.intersect_packet(&rays, &mut hits);
                         for (ray, hit) in rays.iter().zip(&hits) {
                             let alone = geometry.intersect(ray);
+                            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
                             let key = |h: &Option<Intersection>| {
                                 h.map(|h| {
                                     (
-                                        h.t.to_bits(),
-                                        h.shape,
-                                        h.primitive,
-                                        h.position.to_array().map(f32::to_bits),
+                                        (h.t.to_bits(), h.shape, h.primitive),
+                                        [h.position, h.error].map(bits),
+                                        [h.geometric_normal, h.shading_normal].map(bits),
                                     )
                                 })
                             };
