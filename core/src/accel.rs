@@ -1171,15 +1171,26 @@ mod tests {
             1 => [a, b, a + 2.0 * (b - a)], // collinear
             _ => [a, b, c],
         });
-        let mesh = prop::collection::vec(triangle, 1..60).prop_map(|tris| {
-            let mut m = Mesh::default();
-            for t in tris {
-                let base = m.positions.len() as u32;
-                m.positions.extend(t);
-                m.indices.push([base, base + 1, base + 2]);
-            }
-            ShapeGeometry::Mesh(m)
-        });
+        // Some meshes with vertex normals, among them zero ones (an interpolated normal
+        // without a direction).
+        let mesh = (prop::collection::vec(triangle, 1..60), prop::bool::ANY).prop_map(
+            |(tris, with_normals)| {
+                let mut m = Mesh::default();
+                for t in tris {
+                    let base = m.positions.len() as u32;
+                    m.positions.extend(t);
+                    m.indices.push([base, base + 1, base + 2]);
+                }
+                if with_normals {
+                    let normal = |(i, p): (usize, &Vec3)| match i % 5 {
+                        0 => Vec3::ZERO,
+                        _ => (*p * 0.7 + Vec3::X).normalize_or_zero(),
+                    };
+                    m.normals = Some(m.positions.iter().enumerate().map(normal).collect());
+                }
+                ShapeGeometry::Mesh(m)
+            },
+        );
         let sphere = (point(), 0.01f32..3.0)
             .prop_map(|(center, radius)| ShapeGeometry::Sphere(Sphere { center, radius }));
         (
