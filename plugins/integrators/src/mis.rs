@@ -92,11 +92,12 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
 
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
         let ray = sample.ray;
-        let Some(hit) = sample.intersect(scene) else {
+        let mut traced_now = None;
+        let Some(hit) = sample.hit(scene, &mut traced_now) else {
             return scene.environment_radiance(ray.direction);
         };
-        let mut radiance = emitted(scene, &hit, ray.direction);
-        let sp = ShadingPoint::new(scene, hit, -ray.direction);
+        let mut radiance = emitted(scene, hit, ray.direction);
+        let sp = ShadingPoint::new(scene, *hit, -ray.direction);
         PhaseBuffers::with_thread_local(|buffers| {
             for (light, emitter) in scene.emitters.iter().enumerate() {
                 if emitter.is_delta() {
@@ -147,17 +148,8 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
         for ((sample, point), radiance) in samples.iter().zip(&mut points).zip(radiance.iter_mut())
         {
             let ray = sample.ray;
-            // The traced hit read in place: a copy of it, read back field by field just after,
-            // waited for its stores (3 % of the Cornell box's time on one load).
-            let traced_now;
-            let hit = match sample.traced() {
-                Some(hit) => hit.as_ref(),
-                None => {
-                    traced_now = sample.intersect(scene);
-                    traced_now.as_ref()
-                }
-            };
-            *radiance = match hit {
+            let mut traced_now = None;
+            *radiance = match sample.hit(scene, &mut traced_now) {
                 None => scene.environment_radiance(ray.direction),
                 Some(hit) => {
                     let emitted = emitted(scene, hit, ray.direction);
