@@ -844,11 +844,10 @@ fn closest_hit_packet_kernel(
     // Lanes past the rays never enter anything.
     let mut ray_t_max = [-1.0f32; PACKET_SIZE];
     ray_t_max[..packet.rays].copy_from_slice(&t_max[..packet.rays]);
-    let largest = |t_max: &[f32; PACKET_SIZE]| t_max.iter().copied().fold(0.0f32, f32::max);
     let mut stack = Stack::new();
     let mut node = 0u32;
     let scale = far_scale();
-    let mut packet_t_max = largest(&ray_t_max);
+    let mut packet_t_max = largest_bound(&ray_t_max);
     loop {
         let current = &nodes[node as usize];
         let (mut mask, t_near) = node_test(current, packet, packet_t_max);
@@ -889,7 +888,7 @@ fn closest_hit_packet_kernel(
                     }
                 }
             }
-            packet_t_max = largest(&ray_t_max);
+            packet_t_max = largest_bound(&ray_t_max);
         }
         let bound = packet_t_max * scale;
         if inner_count > 0 && inner[0].1 <= bound {
@@ -910,6 +909,27 @@ fn closest_hit_packet_kernel(
             }
         }
     }
+}
+
+/// The largest of a packet's bounds, and 0: the fold of `f32::max` from 0, as a tree of
+/// comparisons that compiles to a few vector maxima (the fold took 5 % of the Cornell box's
+/// packet traversal). Each bound is raised to 0 first (a NaN too, which `f32::max` ignores);
+/// after that, the order of the maxima does not change the result.
+#[inline(always)]
+fn largest_bound(t_max: &[f32; PACKET_SIZE]) -> f32 {
+    let mut m = t_max.map(|t| if t > 0.0 { t } else { 0.0 });
+    let mut half = PACKET_SIZE / 2;
+    while half > 0 {
+        for i in 0..half {
+            m[i] = if m[i + half] > m[i] {
+                m[i + half]
+            } else {
+                m[i]
+            };
+        }
+        half /= 2;
+    }
+    m[0]
 }
 
 /// Any-hit traversal: stops at the first primitive that blocks the ray.
@@ -953,6 +973,39 @@ fn any_hit_kernel(
 mod tests {
     use super::*;
     use glam::{Vec3, Vec3A};
+
+    /// A packet's largest bound is the fold of `f32::max` from 0, bit for bit, on random
+    /// bounds mixed with NaN, infinities, negative bounds (the lanes past the rays) and zeros of
+    /// both signs.
+    #[test]
+    fn the_largest_bound_is_the_fold_of_the_bounds() {
+        let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
+        let special = [
+            0.0,
+            -0.0,
+            -1.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::MIN_POSITIVE,
+            1e30,
+        ];
+        let mut positive = 0;
+        for _ in 0..20_000 {
+            let bounds: [f32; PACKET_SIZE] = std::array::from_fn(|_| {
+                let u = sampler.next_1d();
+                if u < 0.25 {
+                    special[(sampler.next_1d() * special.len() as f32) as usize % special.len()]
+                } else {
+                    sampler.next_1d() * 10f32.powi((u * 20.0) as i32 - 10)
+                }
+            });
+            let fold = bounds.iter().copied().fold(0.0f32, f32::max);
+            let tree = largest_bound(&bounds);
+            assert_eq!(tree.to_bits(), fold.to_bits(), "{bounds:?}");
+            positive += (fold > 0.0) as u32;
+        }
+        assert!(positive > 10_000, "{positive}");
+    }
 
     /// The node test is conservative: a ray aimed at any point of a box's boundary, from any
     /// side, enters it, flat boxes included (the rounded slab test misses some).
