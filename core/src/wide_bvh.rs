@@ -484,26 +484,22 @@ impl PacketBoxTest {
         }
         // Lanes past the rays repeat the last one.
         let mut inv = rays[rays.len() - 1].inv_direction.map(|v| [v; PACKET_SIZE]);
-        let (mut inv_low, mut inv_high) = (first.inv_direction, first.inv_direction);
         for (r, ray) in rays.iter().enumerate() {
             if ray.near != first.near
                 || ray.origin.map(f32::to_bits) != first.origin.map(f32::to_bits)
             {
                 return None;
             }
-            for axis in 0..3 {
-                let v = ray.inv_direction[axis];
-                inv[axis][r] = v;
-                // Comparisons rather than f32::min/max: a reciprocal here is never NaN
-                // (RayBoxTest::new), and these compile to single instructions.
-                inv_low[axis] = if v < inv_low[axis] { v } else { inv_low[axis] };
-                inv_high[axis] = if v > inv_high[axis] {
-                    v
-                } else {
-                    inv_high[axis]
-                };
-            }
+            let [x, y, z] = ray.inv_direction;
+            (inv[0][r], inv[1][r], inv[2][r]) = (x, y, z);
         }
+        // Each row's extremes as trees of comparisons, not as a scan from the first ray, whose
+        // comparisons each waited on the one before. A reciprocal here is never NaN
+        // (RayBoxTest::new), so the extremes are the scan's, but for the sign of a zero bound
+        // where the rays' directions are infinite in both signs (which the slab test, comparing
+        // products with it, does not see).
+        let inv_low = inv.map(|row| extreme(row, |candidate, kept| candidate < kept));
+        let inv_high = inv.map(|row| extreme(row, |candidate, kept| candidate > kept));
         let packet = PacketBoxTest {
             origin: first.origin,
             inv_low,
@@ -917,19 +913,28 @@ fn closest_hit_packet_kernel(
 /// after that, the order of the maxima does not change the result.
 #[inline(always)]
 fn largest_bound(t_max: &[f32; PACKET_SIZE]) -> f32 {
-    let mut m = t_max.map(|t| if t > 0.0 { t } else { 0.0 });
+    let raised = t_max.map(|t| if t > 0.0 { t } else { 0.0 });
+    extreme(raised, |candidate, kept| candidate > kept)
+}
+
+/// The value of `values` that no other one `replaces`, found as a tree of comparisons (lanes
+/// half the array apart, then a quarter, ...), which compiles to a few vector minima or maxima.
+/// Where two compare equal, the lower lane's is kept.
+#[inline(always)]
+fn extreme(mut values: [f32; PACKET_SIZE], replaces: impl Fn(f32, f32) -> bool) -> f32 {
     let mut half = PACKET_SIZE / 2;
     while half > 0 {
         for i in 0..half {
-            m[i] = if m[i + half] > m[i] {
-                m[i + half]
+            let (kept, candidate) = (values[i], values[i + half]);
+            values[i] = if replaces(candidate, kept) {
+                candidate
             } else {
-                m[i]
+                kept
             };
         }
         half /= 2;
     }
-    m[0]
+    values[0]
 }
 
 /// Any-hit traversal: stops at the first primitive that blocks the ray.
@@ -1005,6 +1010,40 @@ mod tests {
             positive += (fold > 0.0) as u32;
         }
         assert!(positive > 10_000, "{positive}");
+    }
+
+    /// A packet's bounds of the reciprocals, found as trees, are the scan's from the first ray,
+    /// bit for bit, on random values with repeated values and infinities among them; with
+    /// zeros of both signs in one row (reciprocals of infinite directions) they compare equal
+    /// to it, possibly the other zero.
+    #[test]
+    fn the_extremes_of_a_row_are_the_scans() {
+        let mut sampler = crate::sampler::Sampler::new(6, 0, 0);
+        let special = [0.0, f32::INFINITY, f32::NEG_INFINITY, 1.0, -1.0, -0.0];
+        for _ in 0..20_000 {
+            let row: [f32; PACKET_SIZE] = std::array::from_fn(|_| {
+                if sampler.next_1d() < 0.5 {
+                    special[(sampler.next_1d() * special.len() as f32) as usize % special.len()]
+                } else {
+                    sampler.next_1d() - 0.5
+                }
+            });
+            let scan = |replaces: fn(f32, f32) -> bool| {
+                row.iter()
+                    .fold(row[0], |kept, &v| if replaces(v, kept) { v } else { kept })
+            };
+            let orders: [fn(f32, f32) -> bool; 2] = [|a, b| a < b, |a, b| a > b];
+            let both_zeros = row.iter().any(|v| v.to_bits() == 0)
+                && row.iter().any(|v| v.to_bits() == (-0.0f32).to_bits());
+            for replaces in orders {
+                let (tree, scanned) = (extreme(row, replaces), scan(replaces));
+                if both_zeros {
+                    assert_eq!(tree, scanned, "{row:?}");
+                } else {
+                    assert_eq!(tree.to_bits(), scanned.to_bits(), "{row:?}");
+                }
+            }
+        }
     }
 
     /// The node test is conservative: a ray aimed at any point of a box's boundary, from any
