@@ -692,6 +692,7 @@ mod eight {
             for (i, lane) in lanes.0.iter_mut().enumerate() {
                 *lane = -(f(i) as i32);
             }
+            // SAFETY: `Aligned` puts the eight i32 on the 32-byte boundary the load needs.
             Mask8(unsafe { _mm256_castsi256_ps(_mm256_load_si256(lanes.0.as_ptr().cast())) })
         }
     }
@@ -717,12 +718,14 @@ mod eight {
             for (i, lane) in lanes.0.iter_mut().enumerate() {
                 *lane = f(i);
             }
+            // SAFETY: `Aligned` puts the eight f32 on the 32-byte boundary the load needs.
             F32x8(unsafe { _mm256_load_ps(lanes.0.as_ptr()) })
         }
         /// Through an [`Aligned`] copy.
         #[inline(always)]
         fn lane(self, i: usize) -> f32 {
             let mut lanes = Aligned([0.0f32; 8]);
+            // SAFETY: `Aligned` puts the eight f32 on the 32-byte boundary the store needs.
             unsafe { _mm256_store_ps(lanes.0.as_mut_ptr(), self.0) };
             lanes.0[i]
         }
