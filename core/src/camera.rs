@@ -75,6 +75,7 @@ impl Camera {
 
     /// The primary rays through film positions `film[i]`, four at a time: each the ray
     /// [`generate_ray`](Self::generate_ray) gives, bit for bit.
+    #[inline]
     pub fn generate_rays(&self, film: [Vec2; 4]) -> [Ray; 4] {
         let directions = self.directions(
             Vec4::from_array(film.map(|f| f.x)),
