@@ -112,10 +112,8 @@ impl CameraSample {
     /// The primary ray's closest intersection: the one [`CameraSample::trace_together`] found,
     /// or traced now.
     pub fn intersect(&self, scene: &Scene) -> Option<Intersection> {
-        match self.traced {
-            Some(hit) => hit,
-            None => scene.intersect(&self.ray),
-        }
+        let mut traced_now = None;
+        self.hit(scene, &mut traced_now).copied()
     }
 
     /// [`intersect`](Self::intersect) without a copy: the intersection
@@ -139,7 +137,7 @@ impl CameraSample {
 
     /// Traces the primary rays of `samples` as packets ([`Geometry::intersect_packet`]): the
     /// camera samples of one pixel share the camera's origin and nearly a direction, so they
-    /// visit the same nodes. Each sample keeps its hit for [`CameraSample::intersect`].
+    /// visit the same nodes. Each sample keeps its hit for [`CameraSample::hit`].
     ///
     /// [`Geometry::intersect_packet`]: crate::accel::Geometry::intersect_packet
     pub fn trace_together(scene: &Scene, samples: &mut [CameraSample]) {

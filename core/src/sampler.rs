@@ -53,6 +53,13 @@ impl Sampler {
         let x = self.next_1d();
         Vec2::new(x, self.next_1d())
     }
+
+    /// One of `values`, each as likely, from one number (for tests that mix special values
+    /// into random ones).
+    #[cfg(test)]
+    pub(crate) fn pick<T: Copy>(&mut self, values: &[T]) -> T {
+        values[(self.next_1d() * values.len() as f32) as usize % values.len()]
+    }
 }
 
 #[cfg(test)]

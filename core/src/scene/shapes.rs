@@ -413,7 +413,7 @@ mod tests {
         ];
         let mut coordinate = || {
             if sampler.next_1d() < 0.3 {
-                special[(sampler.next_1d() * special.len() as f32) as usize % special.len()]
+                sampler.pick(&special)
             } else {
                 (sampler.next_1d() - 0.5) * 10f32.powi((sampler.next_1d() * 76.0) as i32 - 38)
             }
