@@ -226,6 +226,7 @@ impl Primitive {
 }
 
 /// Per-ray constants of the watertight triangle test (Woop, Benthin, Wald 2013).
+#[derive(Clone, Copy)]
 struct RayShear {
     /// The axis along which the direction is largest; the other two follow it cyclically.
     kz: usize,
@@ -930,21 +931,23 @@ impl Geometry {
     /// share an origin and direction signs.
     fn first_hits(&self, rays: &[Ray], hits: &mut [Option<FirstHit>]) {
         let n = rays.len();
-        let boxes: [RayBoxTest; PACKET_SIZE] = std::array::from_fn(|i| {
-            RayBoxTest::new(rays[i.min(n - 1)].origin, rays[i.min(n - 1)].direction)
-        });
-        let packet = match PacketBoxTest::new(&boxes[..n]) {
-            Some(packet) if n > 1 && !self.primitives.is_empty() => packet,
-            _ => {
-                for (hit, ray) in hits.iter_mut().zip(rays) {
-                    *hit = self.first_hit(ray);
-                }
-                return;
+        // Built in place (`PacketBoxTest::set`).
+        let mut packet = PacketBoxTest::EMPTY;
+        let is_packet = n > 1
+            && !self.primitives.is_empty()
+            && packet.set(n, |i| RayBoxTest::new(rays[i].origin, rays[i].direction));
+        if !is_packet {
+            for (hit, ray) in hits.iter_mut().zip(rays) {
+                *hit = self.first_hit(ray);
             }
-        };
+            return;
+        }
         count_rays(n as u64);
-        let shears: [RayShear; PACKET_SIZE] =
-            std::array::from_fn(|i| RayShear::new(rays[i.min(n - 1)].direction));
+        // Lanes past the rays repeat the last one. Made in place, as `packet` is.
+        let mut shears = [RayShear::new(rays[n - 1].direction); PACKET_SIZE];
+        for (shear, ray) in shears.iter_mut().zip(&rays[..n - 1]) {
+            *shear = RayShear::new(ray.direction);
+        }
         let mut t_max: [f32; PACKET_SIZE] = std::array::from_fn(|i| rays[i.min(n - 1)].t_max);
         let mut barycentrics = [[0.0; 3]; PACKET_SIZE];
         let mut closest = [None; PACKET_SIZE];
@@ -952,8 +955,8 @@ impl Geometry {
         let origin = rays[0].origin;
         self.bvh.closest_hit_packet(
             &packet,
-            &mut t_max[..n],
-            &mut closest[..n],
+            &mut t_max,
+            &mut closest,
             // Inlined, as in `closest_hit_among`.
             #[inline(always)]
             |slot, rays_in, t_max| {

@@ -142,10 +142,13 @@ impl CameraSample {
     /// [`Geometry::intersect_packet`]: crate::accel::Geometry::intersect_packet
     pub fn trace_together(scene: &Scene, samples: &mut [CameraSample]) {
         for samples in samples.chunks_mut(PACKET_SIZE) {
-            let rays: [Ray; PACKET_SIZE] =
-                std::array::from_fn(|i| samples[i.min(samples.len() - 1)].ray);
-            let mut hits = [None; PACKET_SIZE];
             let n = samples.len();
+            // Written in place: an array made by `from_fn` was copied whole, through `memcpy`.
+            let mut rays = [samples[n - 1].ray; PACKET_SIZE];
+            for (ray, sample) in rays.iter_mut().zip(&samples[..n - 1]) {
+                *ray = sample.ray;
+            }
+            let mut hits = [None; PACKET_SIZE];
             scene.geometry.intersect_packet(&rays[..n], &mut hits[..n]);
             for (sample, hit) in samples.iter_mut().zip(hits) {
                 sample.traced = Some(hit);

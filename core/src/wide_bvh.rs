@@ -251,7 +251,9 @@ impl WideBvh {
     /// lowered to each hit accepted; `hit(i, rays, t_max)` tests primitive `i` for the rays whose
     /// bits are set in `rays`, lowers `t_max[r]` of each that hits it before `t_max[r]` to the
     /// distance, and returns their bits (a primitive against several rays at once: it can test
-    /// them in SIMD lanes); `closest[r]` is the last primitive accepted for ray `r`. The packet
+    /// them in SIMD lanes); `closest[r]` is the last primitive accepted for ray `r`. Both have
+    /// a lane for every ray a packet can hold: past the packet's rays, `t_max` is not read and
+    /// comes back negative, and `closest` is `None`. The packet
     /// visits every node one of its rays would visit alone, and in each, every ray tests the
     /// leaves its own node test would let through: each ray tests the primitives its own
     /// traversal would test, perhaps more, in another order.
@@ -259,11 +261,11 @@ impl WideBvh {
     pub fn closest_hit_packet(
         &self,
         packet: &PacketBoxTest,
-        t_max: &mut [f32],
-        closest: &mut [Option<usize>],
+        t_max: &mut [f32; PACKET_SIZE],
+        closest: &mut [Option<usize>; PACKET_SIZE],
         hit: impl FnMut(usize, u32, &mut [f32; PACKET_SIZE]) -> u32,
     ) {
-        closest.fill(None);
+        *closest = [None; PACKET_SIZE];
         if self.nodes.is_empty() {
             return;
         }
@@ -442,6 +444,19 @@ impl RayBoxTest {
             near,
         }
     }
+
+    /// Whether the two rays can share a packet: the same origin, bit for bit, and the same
+    /// near planes. The differences are OR-ed together in registers: compared as arrays, the
+    /// fields of a ray just made were stored and read back wider than they were written, a
+    /// read the store buffer cannot forward (a third of a packet's set-up time).
+    #[inline(always)]
+    fn shares_packet_with(&self, other: &RayBoxTest) -> bool {
+        let near = (0..3).fold(0, |d, axis| d | (self.near[axis] ^ other.near[axis]));
+        let origin = (0..3).fold(0, |d, axis| {
+            d | (self.origin[axis].to_bits() ^ other.origin[axis].to_bits())
+        });
+        near == 0 && origin == 0
+    }
 }
 
 /// Up to [`PACKET_SIZE`] rays that share an origin and the signs of their directions (a
@@ -478,37 +493,53 @@ impl PacketBoxTest {
     /// do not all share their origin and the sign of each direction component (trace those
     /// one by one).
     pub fn new(rays: &[RayBoxTest]) -> Option<Self> {
-        let first = rays.first()?;
-        if rays.len() > PACKET_SIZE {
-            return None;
+        let mut packet = Self::EMPTY;
+        packet.set(rays.len(), |r| rays[r]).then_some(packet)
+    }
+
+    /// No rays yet: a place for [`set`](Self::set) to build a packet in.
+    pub const EMPTY: PacketBoxTest = PacketBoxTest {
+        origin: [0.0; 3],
+        inv_low: [0.0; 3],
+        inv_high: [0.0; 3],
+        inv: [[0.0; PACKET_SIZE]; 3],
+        near: [0; 3],
+        rays: 0,
+    };
+
+    /// Makes `self` [`new`](Self::new)'s packet of the `count` rays `ray_of(0)`, …,
+    /// `ray_of(count − 1)`, and returns whether they make one (if not, `self` is left in no
+    /// particular state). Built in place, each ray made where it is read: a packet returned in
+    /// an `Option`, or made from an array of rays, was copied whole, through `memcpy`.
+    #[inline(always)]
+    pub fn set(&mut self, count: usize, ray_of: impl Fn(usize) -> RayBoxTest) -> bool {
+        if count == 0 || count > PACKET_SIZE {
+            return false;
         }
-        // Lanes past the rays repeat the last one.
-        let mut inv = rays[rays.len() - 1].inv_direction.map(|v| [v; PACKET_SIZE]);
-        for (r, ray) in rays.iter().enumerate() {
-            if ray.near != first.near
-                || ray.origin.map(f32::to_bits) != first.origin.map(f32::to_bits)
-            {
-                return None;
+        let first = ray_of(0);
+        (self.origin, self.near, self.rays) = (first.origin, first.near, count);
+        for r in 0..count {
+            let ray = if r == 0 { first } else { ray_of(r) };
+            if !ray.shares_packet_with(&first) {
+                return false;
             }
-            let [x, y, z] = ray.inv_direction;
-            (inv[0][r], inv[1][r], inv[2][r]) = (x, y, z);
+            for (row, v) in self.inv.iter_mut().zip(ray.inv_direction) {
+                row[r] = v;
+            }
         }
-        // Each row's extremes as trees of comparisons, not as a scan from the first ray, whose
-        // comparisons each waited on the one before. A reciprocal here is never NaN
-        // (RayBoxTest::new), so the extremes are the scan's, but for the sign of a zero bound
-        // where the rays' directions are infinite in both signs (which the slab test, comparing
-        // products with it, does not see).
-        let inv_low = inv.map(|row| extreme(row, |candidate, kept| candidate < kept));
-        let inv_high = inv.map(|row| extreme(row, |candidate, kept| candidate > kept));
-        let packet = PacketBoxTest {
-            origin: first.origin,
-            inv_low,
-            inv_high,
-            inv,
-            near: first.near,
-            rays: rays.len(),
-        };
-        Some(packet)
+        for (axis, row) in self.inv.iter_mut().enumerate() {
+            // Lanes past the rays repeat the last one.
+            let last = row[count - 1];
+            row[count..].fill(last);
+            // Each row's extremes as trees of comparisons, not as a scan from the first ray,
+            // whose comparisons each waited on the one before. A reciprocal here is never NaN
+            // (RayBoxTest::new), so the extremes are the scan's, but for the sign of a zero
+            // bound where the rays' directions are infinite in both signs (which the slab test,
+            // comparing products with it, does not see).
+            self.inv_low[axis] = extreme(*row, |candidate, kept| candidate < kept);
+            self.inv_high[axis] = extreme(*row, |candidate, kept| candidate > kept);
+        }
+        true
     }
 }
 
@@ -634,8 +665,8 @@ fn any_hit_avx2(
 fn closest_hit_packet_avx2(
     nodes: &[WideNode],
     packet: &PacketBoxTest,
-    t_max: &mut [f32],
-    closest: &mut [Option<usize>],
+    t_max: &mut [f32; PACKET_SIZE],
+    closest: &mut [Option<usize>; PACKET_SIZE],
     hit: impl FnMut(usize, u32, &mut [f32; PACKET_SIZE]) -> u32,
 ) {
     closest_hit_packet_kernel(
@@ -831,15 +862,18 @@ fn closest_hit_kernel(
 fn closest_hit_packet_kernel(
     nodes: &[WideNode],
     packet: &PacketBoxTest,
-    t_max: &mut [f32],
-    closest: &mut [Option<usize>],
+    t_max: &mut [f32; PACKET_SIZE],
+    closest: &mut [Option<usize>; PACKET_SIZE],
     mut hit: impl FnMut(usize, u32, &mut [f32; PACKET_SIZE]) -> u32,
     node_test: impl Fn(&WideNode, &PacketBoxTest, f32) -> (u32, [f32; 8]),
     rays_entering: impl Fn(&WideNode, usize, &PacketBoxTest, &[f32; PACKET_SIZE]) -> u32,
 ) {
-    // Lanes past the rays never enter anything.
-    let mut ray_t_max = [-1.0f32; PACKET_SIZE];
-    ray_t_max[..packet.rays].copy_from_slice(&t_max[..packet.rays]);
+    // Lanes past the rays never enter anything. Whole arrays, copied in registers: a copy of
+    // the rays' part alone, of a length known only at run time, was a call to `memcpy`.
+    let mut ray_t_max = *t_max;
+    for bound in &mut ray_t_max[packet.rays..] {
+        *bound = -1.0;
+    }
     let mut stack = Stack::new();
     let mut node = 0u32;
     let scale = far_scale();
@@ -896,7 +930,7 @@ fn closest_hit_packet_kernel(
         }
         loop {
             let Some((next, t_enter)) = stack.pop() else {
-                t_max[..packet.rays].copy_from_slice(&ray_t_max[..packet.rays]);
+                *t_max = ray_t_max;
                 return;
             };
             if t_enter <= packet_t_max * scale {
@@ -1301,6 +1335,28 @@ mod tests {
         );
     }
 
+    /// Rays make a packet only from one origin, bit for bit, and with one sign per direction
+    /// component: a ray one ulp away, or in another octant, makes none.
+    #[test]
+    fn packets_need_one_origin_and_one_octant() {
+        let origin = Vec3::new(1.0, -2.0, 0.0);
+        let (along, other) = (Vec3::new(1.0, 2.0, -3.0), Vec3::new(2.0, 1.0, -1.0));
+        let first = RayBoxTest::new(origin, along);
+        let packet = |second| PacketBoxTest::new(&[first, second]).is_some();
+        assert!(packet(RayBoxTest::new(origin, other)));
+        for axis in 0..3 {
+            let mut moved = origin;
+            moved[axis] = next_float_up(moved[axis]);
+            assert!(!packet(RayBoxTest::new(moved, other)), "origin moved on axis {axis}");
+            let mut flipped = other;
+            flipped[axis] = -flipped[axis];
+            assert!(!packet(RayBoxTest::new(origin, flipped)), "direction flipped on {axis}");
+        }
+        // −0 is not +0 here: the origins differ in their bits.
+        let negative_zero = Vec3::new(1.0, -2.0, -0.0);
+        assert!(!packet(RayBoxTest::new(negative_zero, other)));
+    }
+
     /// Packets find each ray's closest box as the ray alone finds it, with the portable kernel
     /// and with the dispatched one (random boxes standing for primitives, as above).
     #[test]
@@ -1320,15 +1376,12 @@ mod tests {
                 continue;
             };
             packets += 1;
-            let t_max0: Vec<f32> = (0..rays.len())
-                .map(|r| {
-                    if (round + r) % 2 == 0 {
-                        f32::INFINITY
-                    } else {
-                        20.0
-                    }
-                })
-                .collect();
+            // Lanes past the rays are not read: NaN there changes nothing.
+            let t_max0: [f32; PACKET_SIZE] = std::array::from_fn(|r| match r {
+                _ if r >= rays.len() => f32::NAN,
+                _ if (round + r) % 2 == 0 => f32::INFINITY,
+                _ => 20.0,
+            });
             let alone: Vec<Option<f32>> = rays
                 .iter()
                 .zip(&t_max0)
@@ -1351,8 +1404,8 @@ mod tests {
                 }
                 hits
             };
-            let mut closest = vec![None; rays.len()];
-            let mut t_max = t_max0.clone();
+            let mut closest = [None; PACKET_SIZE];
+            let mut t_max = t_max0;
             closest_hit_packet_kernel(
                 &bvh.nodes,
                 &packet,
@@ -1362,15 +1415,18 @@ mod tests {
                 packet_node_test,
                 rays_entering,
             );
-            let found = |closest: &[Option<usize>]| -> Vec<Option<f32>> {
-                closest
+            let found = |closest: &[Option<usize>; PACKET_SIZE]| -> Vec<Option<f32>> {
+                let (rays_closest, past) = closest.split_at(rays.len());
+                assert!(past.iter().all(Option::is_none), "a lane past the rays hit");
+                rays_closest
                     .iter()
                     .enumerate()
                     .map(|(r, c)| c.map(|i| hit(r, i, t_max0[r]).unwrap()))
                     .collect()
             };
             assert_eq!(found(&closest), alone, "round {round}, portable kernel");
-            let mut t_max = t_max0.clone();
+            let mut t_max = t_max0;
+            closest = [Some(0); PACKET_SIZE];
             bvh.closest_hit_packet(&packet, &mut t_max, &mut closest, packet_hit);
             assert_eq!(found(&closest), alone, "round {round}, dispatched kernel");
         }
