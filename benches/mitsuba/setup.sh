@@ -16,7 +16,9 @@ fi
 llvm=(/usr/lib/x86_64-linux-gnu/libLLVM-19.so /usr/lib/x86_64-linux-gnu/libLLVM.so.19*)
 if [ ! -e "${llvm[0]}" ] && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
     echo "installing Debian's libllvm19 for Mitsuba's llvm_ad_rgb variant"
-    apt-get install -y -qq libllvm19 >/dev/null || true
+    # A fresh machine's package lists may be empty: fetched once, only when the install fails.
+    apt-get install -y -qq libllvm19 >/dev/null 2>&1 ||
+        { apt-get update -qq >/dev/null && apt-get install -y -qq libllvm19 >/dev/null 2>&1; } || true
 fi
 extra=()
 if [ -e "${llvm[0]}" ]; then
