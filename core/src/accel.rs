@@ -213,6 +213,17 @@ impl Primitive {
         }
     }
 
+    /// Whether this is the triangle that surface point `from` lies on. A ray leaving a point
+    /// of a triangle leaves its plane and cannot meet it again: from its origin offset off the
+    /// plane ([`RayOrigin`]) the watertight test finds t ≤ 0 and rejects it, after most of its
+    /// work (the origin projects inside the triangle, so every edge test passes). A sphere is
+    /// never skipped: a ray into it meets its far side.
+    #[inline(always)]
+    fn is_triangle_under(&self, from: &Intersection) -> bool {
+        matches!(self, Primitive::Triangle { shape, index, .. }
+            if *shape == from.shape && *index == from.primitive)
+    }
+
     /// Where `ray` (with its `shear`) meets the primitive before `t_max`: the distance and the
     /// barycentrics (zero for a sphere).
     #[inline(always)]
@@ -848,6 +859,12 @@ impl Geometry {
         self.closest_hit_among(ray, |_| true)
     }
 
+    /// [`Geometry::first_hit`] for a ray leaving surface point `from`, without testing the
+    /// triangle `from` lies on, which it cannot meet ([`Primitive::is_triangle_under`]).
+    pub fn first_hit_leaving(&self, ray: &Ray, from: &Intersection) -> Option<FirstHit> {
+        self.closest_hit_among(ray, |primitive| !primitive.is_triangle_under(from))
+    }
+
     /// The closest hit on shape `shape` along the ray, every other shape ignored, as if it were
     /// alone in the scene: where light sampling could have drawn the direction of a BSDF ray
     /// that something else blocked. The same traversal and primitive tests as
@@ -1102,6 +1119,18 @@ impl Geometry {
             None => self.occluded(ray),
             // Inlined into the caller, which most often holds the ray in registers.
             Some(ignored) => self.blocked_by(ray, false, |primitive| primitive.shape() != ignored),
+        }
+    }
+
+    /// [`Geometry::occluded_by_others`] for a ray leaving surface point `from`, without testing
+    /// the triangle `from` lies on, which cannot block it ([`Primitive::is_triangle_under`]).
+    #[inline]
+    pub fn occluded_leaving(&self, ray: &Ray, from: &Intersection, ignored: Option<u32>) -> bool {
+        match ignored {
+            None => self.blocked_by(ray, true, |primitive| !primitive.is_triangle_under(from)),
+            Some(ignored) => self.blocked_by(ray, false, |primitive| {
+                primitive.shape() != ignored && !primitive.is_triangle_under(from)
+            }),
         }
     }
 
@@ -1473,6 +1502,81 @@ mod tests {
             }
             Ok(())
         });
+    }
+
+    /// Rays leaving a surface point skip the triangle under it ([`Primitive::is_triangle_under`])
+    /// and answer as the queries that test it: the same first hit (slot and distance) and the
+    /// same occlusion, for directions on both sides of the surface (grazing ones too), to
+    /// points and to infinity, with and without a shape ignored. Spheres are tested as before:
+    /// a ray into one meets its far side.
+    #[test]
+    fn rays_leaving_a_surface_answer_as_the_full_queries() {
+        let leaving_triangles = Cell::new(0usize);
+        let leaving_spheres = Cell::new(0usize);
+        let mut sampler = crate::sampler::Sampler::new(7, 0, 0);
+        let directions: Vec<Vec3> = (0..8)
+            .map(|_| {
+                let (u, v) = (sampler.next_2d(), sampler.next_1d());
+                Vec3::new(2.0 * u.x - 1.0, 2.0 * u.y - 1.0, 2.0 * v - 1.0)
+            })
+            .collect();
+        for_random_scenes_and_rays(|geometry, camera_ray| {
+            let Some(hit) = geometry.intersect(camera_ray) else {
+                return Ok(());
+            };
+            let on_triangle = matches!(geometry.shapes[hit.shape as usize], ShapeGeometry::Mesh(_));
+            let counter = if on_triangle {
+                &leaving_triangles
+            } else {
+                &leaving_spheres
+            };
+            counter.set(counter.get() + 1);
+            let origin = RayOrigin::toward(&hit, -camera_ray.direction);
+            let n = hit.geometric_normal;
+            // Random directions, and grazing ones: nearly in the tangent plane, either side.
+            let grazing = |w: Vec3| (w - n * w.dot(n)).normalize_or_zero() + n * 1e-4;
+            let aims = directions
+                .iter()
+                .flat_map(|&w| [w, grazing(w), grazing(-w) - 2e-4 * n]);
+            for w in aims.filter(|w| w.length_squared() > 0.0) {
+                let ray = origin.ray(&hit, w.normalize());
+                let (full, leaving) = (
+                    geometry.first_hit(&ray),
+                    geometry.first_hit_leaving(&ray, &hit),
+                );
+                prop_assert_eq!(
+                    full.map(|f| (f.slot, f.t.to_bits())),
+                    leaving.map(|f| (f.slot, f.t.to_bits())),
+                    "from {:?} toward {:?}",
+                    hit,
+                    w
+                );
+                prop_assert_eq!(
+                    geometry.occluded(&ray),
+                    geometry.occluded_leaving(&ray, &hit, None)
+                );
+                let target = ray.origin + 3.0 * ray.direction;
+                let shadow = origin.ray_to(&hit, target);
+                for ignored in [None, Some(hit.shape), Some(0)] {
+                    prop_assert_eq!(
+                        geometry.occluded_by_others(&shadow, ignored),
+                        geometry.occluded_leaving(&shadow, &hit, ignored),
+                        "from {:?} toward {:?}, {:?} ignored",
+                        hit,
+                        target,
+                        ignored
+                    );
+                }
+            }
+            Ok(())
+        });
+        // Enough points of both kinds for the comparison to mean something.
+        assert!(
+            leaving_triangles.get() > 1000 && leaving_spheres.get() > 25,
+            "{} points on triangles, {} on spheres",
+            leaving_triangles.get(),
+            leaving_spheres.get()
+        );
     }
 
     /// Packets of rays from one origin (nearly parallel as a pixel's camera rays, or spread

@@ -1347,10 +1347,16 @@ mod tests {
         for axis in 0..3 {
             let mut moved = origin;
             moved[axis] = next_float_up(moved[axis]);
-            assert!(!packet(RayBoxTest::new(moved, other)), "origin moved on axis {axis}");
+            assert!(
+                !packet(RayBoxTest::new(moved, other)),
+                "origin moved on axis {axis}"
+            );
             let mut flipped = other;
             flipped[axis] = -flipped[axis];
-            assert!(!packet(RayBoxTest::new(origin, flipped)), "direction flipped on {axis}");
+            assert!(
+                !packet(RayBoxTest::new(origin, flipped)),
+                "direction flipped on {axis}"
+            );
         }
         // −0 is not +0 here: the origins differ in their bits.
         let negative_zero = Vec3::new(1.0, -2.0, -0.0);

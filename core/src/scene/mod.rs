@@ -70,11 +70,12 @@ impl Scene {
         self.geometry.occluded(ray)
     }
 
-    /// Whether the shadow ray toward a sample of light `light` is blocked.
+    /// Whether the shadow ray from surface point `from` toward a sample of light `light` is
+    /// blocked.
     #[inline]
-    pub fn occluded_toward_light(&self, ray: &Ray, light: usize) -> bool {
+    pub fn occluded_toward_light(&self, ray: &Ray, from: &Intersection, light: usize) -> bool {
         self.geometry
-            .occluded_by_others(ray, self.shadow_ray_skips[light])
+            .occluded_leaving(ray, from, self.shadow_ray_skips[light])
     }
 
     pub fn bsdf(&self, hit: &Intersection) -> &dyn Bsdf {

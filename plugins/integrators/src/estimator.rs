@@ -77,7 +77,7 @@ impl<'a> ShadingPoint<'a> {
             Some(target) => self.origin.ray_to(&self.hit, target),
             None => self.origin.ray(&self.hit, sample.wi),
         };
-        !scene.occluded_toward_light(&ray, light)
+        !scene.occluded_toward_light(&ray, &self.hit, light)
     }
 
     /// Whether the surface can reflect toward a light sample: ωi on the viewer's side of the
@@ -217,11 +217,18 @@ enum Reached {
 /// the environment), if it does. Most BSDF rays reach no light, so the cheapest query that
 /// decides is asked: for the environment, whether anything blocks the ray (any hit will do);
 /// for an area light, nothing when the ray passes clear of its shape's box, and otherwise the
-/// first hit, which must be on the light's shape (only then is its surface computed).
-fn reaches_light(scene: &Scene, light: usize, light_shape: Option<u32>, ray: &Ray) -> Reached {
+/// first hit, which must be on the light's shape (only then is its surface computed). The ray
+/// leaves surface point `from`, whose triangle it cannot meet.
+fn reaches_light(
+    scene: &Scene,
+    light: usize,
+    light_shape: Option<u32>,
+    ray: &Ray,
+    from: &Intersection,
+) -> Reached {
     let emitter = scene.emitters[light].as_ref();
     if scene.environment == Some(light) {
-        if scene.occluded(ray) {
+        if scene.geometry.occluded_leaving(ray, from, None) {
             return Reached::Nothing;
         }
         // Only for a ray that escapes: its lookup is deferred to the end of the phase, after
@@ -235,7 +242,9 @@ fn reaches_light(scene: &Scene, light: usize, light_shape: Option<u32>, ray: &Ra
     if !scene.geometry.may_meet(ray, shape) {
         return Reached::Nothing;
     }
-    let Some(first) = scene.first_hit(ray).filter(|first| first.shape == shape) else {
+    let Some(first) =
+        (scene.geometry.first_hit_leaving(ray, from)).filter(|first| first.shape == shape)
+    else {
         return Reached::Nothing;
     };
     let hit = emitter_hit(scene, ray, &first);
@@ -602,7 +611,7 @@ impl<'a> BsdfRecords<'a> {
             records.push(black());
             return;
         }
-        match reaches_light(scene, light, light_shape, &ray) {
+        match reaches_light(scene, light, light_shape, &ray, &sp.hit) {
             Reached::Nothing => records.push(black()),
             Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
                 emitter.pdf_direction(&reference, wi, Some(&hit))
