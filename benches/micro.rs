@@ -4,7 +4,7 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec2, Vec3};
-use lumis::accel::{Geometry, PACKET_SIZE, Ray};
+use lumis::accel::{Geometry, Intersection, PACKET_SIZE, Ray, RayOrigin};
 use lumis::bsdf::Bsdf;
 use lumis::emitter::{Emitter, ReferencePoint};
 use lumis::integrator::CameraSample;
@@ -105,13 +105,18 @@ fn bvh_build(c: &mut Criterion) {
     group.finish();
 }
 
+/// The corners of the mesh's bounding box.
+fn mesh_bounds(mesh: &Mesh) -> (Vec3, Vec3) {
+    mesh.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    )
+}
+
 /// Camera rays through a 64 × 64 grid looking at the dragon (coherent), and rays between random
 /// points of its bounding box (incoherent: random origins and directions, as secondary rays).
 fn ray_sets(mesh: &Mesh) -> [(&'static str, Vec<Ray>); 2] {
-    let (lo, hi) = mesh.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
+    let (lo, hi) = mesh_bounds(mesh);
     let (center, extent) = ((lo + hi) * 0.5, hi - lo);
     let eye = center + Vec3::new(0.0, 0.0, 2.5 * extent.max_element());
     let side = (BATCH as f32).sqrt() as usize;
@@ -149,10 +154,7 @@ fn ray_sets(mesh: &Mesh) -> [(&'static str, Vec<Ray>); 2] {
 /// pixels (every 8th of a 256 × 64 film over the dragon, so pixels about as large as in the
 /// race's dragon scene), a pixel's rays one after the other.
 fn pixel_rays(mesh: &Mesh) -> Vec<Ray> {
-    let (lo, hi) = mesh.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
+    let (lo, hi) = mesh_bounds(mesh);
     let (center, extent) = ((lo + hi) * 0.5, hi - lo);
     let eye = center + Vec3::new(0.0, 0.0, 2.5 * extent.max_element());
     let (width, height) = (32, BATCH / PACKET_SIZE / 32);
@@ -177,6 +179,7 @@ fn ray_queries(c: &mut Criterion) {
     let mesh = load_mesh(&repo("scenes/meshes/dragon_res3.glb"));
     let sets = ray_sets(&mesh);
     let pixels = pixel_rays(&mesh);
+    let (lo, hi) = mesh_bounds(&mesh);
     let geometry = Geometry::new(vec![ShapeGeometry::Mesh(mesh)]);
     let mut group = c.benchmark_group("rays_dragon_res3");
     group.throughput(Throughput::Elements(BATCH as u64));
@@ -203,6 +206,45 @@ fn ray_queries(c: &mut Criterion) {
             })
         });
     }
+    // Shadow rays from the points the coherent camera rays hit toward a point above and in
+    // front of the mesh, as a render spawns them: tested in full, and without the triangle
+    // under each origin (`occluded_leaving`, what the integrators ask since the nineteenth
+    // round). Both answer alike (asserted).
+    let light = (lo + hi) * 0.5 + (hi - lo) * Vec3::new(0.3, 1.5, 1.5);
+    let shadows: Vec<(Intersection, Ray)> = (sets[0].1.iter())
+        .filter_map(|ray| {
+            let hit = geometry.intersect(ray)?;
+            Some((
+                hit,
+                RayOrigin::toward(&hit, -ray.direction).ray_to(&hit, light),
+            ))
+        })
+        .collect();
+    let blocked = |query: &dyn Fn(&Intersection, &Ray) -> bool| {
+        shadows.iter().filter(|(hit, ray)| query(hit, ray)).count()
+    };
+    let full = blocked(&|_, ray| geometry.occluded(ray));
+    assert_eq!(
+        full,
+        blocked(&|hit, ray| geometry.occluded_leaving(ray, hit, None))
+    );
+    println!("shadow rays from hits: {full} of {} blocked", shadows.len());
+    group.throughput(Throughput::Elements(shadows.len() as u64));
+    group.bench_function("shadow_from_hits_full", |b| {
+        b.iter(|| {
+            for (_, ray) in &shadows {
+                black_box(geometry.occluded(ray));
+            }
+        })
+    });
+    group.bench_function("shadow_from_hits_leaving", |b| {
+        b.iter(|| {
+            for (hit, ray) in &shadows {
+                black_box(geometry.occluded_leaving(ray, hit, None));
+            }
+        })
+    });
+    group.throughput(Throughput::Elements(BATCH as u64));
     // A pixel's camera rays traced alone and as one packet (what the render loop does).
     group.bench_function("closest_hit_pixels_alone", |b| {
         b.iter(|| {
