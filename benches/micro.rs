@@ -208,7 +208,7 @@ fn ray_queries(c: &mut Criterion) {
     }
     // Shadow rays from the points the coherent camera rays hit toward a point above and in
     // front of the mesh, as a render spawns them: tested in full, and without the triangle
-    // under each origin (`occluded_leaving`, what the integrators ask since the nineteenth
+    // under each origin (`occluded_by_others` with the point left, what the integrators ask since the nineteenth
     // round). Both answer alike (asserted).
     let light = (lo + hi) * 0.5 + (hi - lo) * Vec3::new(0.3, 1.5, 1.5);
     let shadows: Vec<(Intersection, Ray)> = (sets[0].1.iter())
@@ -226,7 +226,7 @@ fn ray_queries(c: &mut Criterion) {
     let full = blocked(&|_, ray| geometry.occluded(ray));
     assert_eq!(
         full,
-        blocked(&|hit, ray| geometry.occluded_leaving(ray, hit, None))
+        blocked(&|hit, ray| geometry.occluded_by_others(ray, None, Some(hit)))
     );
     println!("shadow rays from hits: {full} of {} blocked", shadows.len());
     group.throughput(Throughput::Elements(shadows.len() as u64));
@@ -240,7 +240,7 @@ fn ray_queries(c: &mut Criterion) {
     group.bench_function("shadow_from_hits_leaving", |b| {
         b.iter(|| {
             for (hit, ray) in &shadows {
-                black_box(geometry.occluded_leaving(ray, hit, None));
+                black_box(geometry.occluded_by_others(ray, None, Some(hit)));
             }
         })
     });

@@ -1113,23 +1113,22 @@ impl Geometry {
     /// Whether anything but shape `ignored` blocks the ray before `t_max`: for a shadow ray
     /// toward a point that shape cannot hide (see
     /// [`Emitter::own_shape_never_blocks_samples`](crate::emitter::Emitter::own_shape_never_blocks_samples)).
+    /// A ray `leaving` a surface point is not tested against the triangle under that point,
+    /// which it cannot meet ([`Primitive::is_triangle_under`]).
     #[inline]
-    pub fn occluded_by_others(&self, ray: &Ray, ignored: Option<u32>) -> bool {
+    pub fn occluded_by_others(
+        &self,
+        ray: &Ray,
+        ignored: Option<u32>,
+        leaving: Option<&Intersection>,
+    ) -> bool {
+        let counts =
+            |primitive: &Primitive| !leaving.is_some_and(|from| primitive.is_triangle_under(from));
         match ignored {
-            None => self.occluded(ray),
+            None => self.blocked_by(ray, true, counts),
             // Inlined into the caller, which most often holds the ray in registers.
-            Some(ignored) => self.blocked_by(ray, false, |primitive| primitive.shape() != ignored),
-        }
-    }
-
-    /// [`Geometry::occluded_by_others`] for a ray leaving surface point `from`, without testing
-    /// the triangle `from` lies on, which cannot block it ([`Primitive::is_triangle_under`]).
-    #[inline]
-    pub fn occluded_leaving(&self, ray: &Ray, from: &Intersection, ignored: Option<u32>) -> bool {
-        match ignored {
-            None => self.blocked_by(ray, true, |primitive| !primitive.is_triangle_under(from)),
             Some(ignored) => self.blocked_by(ray, false, |primitive| {
-                primitive.shape() != ignored && !primitive.is_triangle_under(from)
+                primitive.shape() != ignored && counts(primitive)
             }),
         }
     }
@@ -1493,7 +1492,7 @@ mod tests {
                     .copied()
                     .collect();
                 prop_assert_eq!(
-                    geometry.occluded_by_others(ray, Some(shape)),
+                    geometry.occluded_by_others(ray, Some(shape), None),
                     brute_force_closest(&others, ray).is_some(),
                     "ray {:?}, shape {} ignored",
                     ray,
@@ -1553,14 +1552,14 @@ mod tests {
                 );
                 prop_assert_eq!(
                     geometry.occluded(&ray),
-                    geometry.occluded_leaving(&ray, &hit, None)
+                    geometry.occluded_by_others(&ray, None, Some(&hit))
                 );
                 let target = ray.origin + 3.0 * ray.direction;
                 let shadow = origin.ray_to(&hit, target);
                 for ignored in [None, Some(hit.shape), Some(0)] {
                     prop_assert_eq!(
-                        geometry.occluded_by_others(&shadow, ignored),
-                        geometry.occluded_leaving(&shadow, &hit, ignored),
+                        geometry.occluded_by_others(&shadow, ignored, None),
+                        geometry.occluded_by_others(&shadow, ignored, Some(&hit)),
                         "from {:?} toward {:?}, {:?} ignored",
                         hit,
                         target,

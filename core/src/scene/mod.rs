@@ -12,7 +12,7 @@ pub mod ply;
 pub mod shapes;
 pub mod syntax;
 
-use crate::accel::{FirstHit, Geometry, Intersection, Ray};
+use crate::accel::{Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
@@ -61,11 +61,6 @@ impl Scene {
         self.geometry.intersect(ray)
     }
 
-    /// The closest shape along the ray; [`Geometry::surface`] gives the rest when needed.
-    pub fn first_hit(&self, ray: &Ray) -> Option<FirstHit> {
-        self.geometry.first_hit(ray)
-    }
-
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.geometry.occluded(ray)
     }
@@ -75,7 +70,7 @@ impl Scene {
     #[inline]
     pub fn occluded_toward_light(&self, ray: &Ray, from: &Intersection, light: usize) -> bool {
         self.geometry
-            .occluded_leaving(ray, from, self.shadow_ray_skips[light])
+            .occluded_by_others(ray, self.shadow_ray_skips[light], Some(from))
     }
 
     pub fn bsdf(&self, hit: &Intersection) -> &dyn Bsdf {

@@ -228,7 +228,7 @@ fn reaches_light(
 ) -> Reached {
     let emitter = scene.emitters[light].as_ref();
     if scene.environment == Some(light) {
-        if scene.geometry.occluded_leaving(ray, from, None) {
+        if scene.geometry.occluded_by_others(ray, None, Some(from)) {
             return Reached::Nothing;
         }
         // Only for a ray that escapes: its lookup is deferred to the end of the phase, after
@@ -242,9 +242,8 @@ fn reaches_light(
     if !scene.geometry.may_meet(ray, shape) {
         return Reached::Nothing;
     }
-    let Some(first) =
-        (scene.geometry.first_hit_leaving(ray, from)).filter(|first| first.shape == shape)
-    else {
+    let first = scene.geometry.first_hit_leaving(ray, from);
+    let Some(first) = first.filter(|first| first.shape == shape) else {
         return Reached::Nothing;
     };
     let hit = emitter_hit(scene, ray, &first);
