@@ -899,11 +899,10 @@ fn the_study_default_integrators_build() {
 /// records again.
 #[test]
 fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
-    use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
-    use lumis::integrators::balance::Balance;
     use lumis::integrators::estimator::ShadingPoint;
-    use lumis::integrators::phase::{Observer, Phase, PhaseRole};
-    use lumis::integrators::weighting::PerSample;
+    use lumis::integrators::phase::{Observer, Phase, PhaseRole, SampleSplit};
+    use lumis::integrators::sampling::{LightSampling, PhaseBuffers};
+    use lumis::integrators::weighting::{Balance, PerSample};
 
     /// Counts what it sees.
     #[derive(Default)]
@@ -929,7 +928,7 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
     let draw = |buffers: &mut PhaseBuffers, light: usize| {
         let mut sampler = lumis::sampler::Sampler::new(5, 6, 7);
         let mut seen = Seen::default();
-        let mut sampling = LightSampling::new(scene, &sp, light, pixel, 37, &mut sampler, buffers);
+        let mut sampling = LightSampling::new(scene, &sp, light, pixel, &mut sampler, buffers);
         let value = sampling.phase(split, PhaseRole::ESTIMATE, &PerSample(Balance), &mut seen);
         let (phase, contributions) = sampling.last_phase().unwrap();
         assert_eq!(phase.split, split);
