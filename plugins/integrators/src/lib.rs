@@ -22,6 +22,8 @@
 //! modules the plugins share, each importing only modules listed before it (tests below check
 //! that no module imports itself through others and that none of these imports a plugin):
 //!
+//! - [`shading_point`], `batch`: a surface point seen by the camera, and each thread's space
+//!   for the batch calls;
 //! - [`estimator`]: draws one light's samples at a shading point as [`estimator::SampleRecord`]s;
 //! - [`phase`]: a phase's [`phase::SampleSplit`], [`phase::PhaseRole`] and records, the
 //!   [`phase::Observer`]s that see it, and a light's [`phase::LightEstimate`];
@@ -41,6 +43,7 @@
 pub mod allocation;
 pub mod alpha_family;
 pub mod aovs;
+mod batch;
 pub mod estimator;
 pub mod fixed_alpha;
 pub mod mis;
@@ -50,6 +53,7 @@ pub mod phase;
 pub mod pilot;
 pub mod sampling;
 pub mod second_order;
+pub mod shading_point;
 pub mod weighting;
 
 pub mod alpha;

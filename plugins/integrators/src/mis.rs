@@ -7,9 +7,10 @@
 
 use crate::allocation::Method;
 use crate::aovs::{self, AovRequest, LightTally};
-use crate::estimator::{ShadingPoint, emitted, estimate_delta_light};
+use crate::estimator::{emitted, estimate_delta_light};
 use crate::phase::LightEstimate;
 use crate::sampling::{LightSampling, PhaseBuffers};
+use crate::shading_point::ShadingPoint;
 use lumis_core::accel::PACKET_SIZE;
 use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
 use lumis_core::math::Rgb;

@@ -11,9 +11,10 @@
 //! sample 0, which shades the same point, adds it to its own estimate (weighted by sample
 //! counts, as the integrated α), so the pilot's samples are not wasted.
 
-use crate::estimator::{Densities, ShadingPoint, draw_bsdf_samples, draw_light_samples};
+use crate::estimator::{Densities, draw_bsdf_samples, draw_light_samples};
 use crate::phase::{Phase, PhaseRole, SampleSplit};
 use crate::sampling::{LightSampling, PhaseBuffers};
+use crate::shading_point::ShadingPoint;
 use crate::weighting::{Balance, PerSample};
 use glam::{UVec2, Vec3};
 use lumis_core::integrator::CameraSample;

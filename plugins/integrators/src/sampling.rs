@@ -8,11 +8,13 @@
 //! allocations ([`crate::allocation`]) see phases, never records being drawn.
 
 use crate::aovs::LightTally;
+use crate::batch::BatchScratch;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, BatchScratch, BsdfRecords, DeferredLookups, Densities, SampleRecord,
-    ShadingPoint, draw_bsdf_samples, draw_light_samples, light_record,
+    BSDF_SAMPLE_NUMBERS, BsdfRecords, DeferredLookups, Densities, SampleRecord, draw_bsdf_samples,
+    draw_light_samples, light_record,
 };
 use crate::phase::{Observer, Phase, PhaseRole, SampleSplit};
+use crate::shading_point::ShadingPoint;
 use crate::weighting::Weighting;
 use glam::UVec2;
 use lumis_core::accel::PACKET_SIZE;
@@ -310,7 +312,7 @@ impl<'a> LightSampling<'a> {
         }
         scratch.clear_lookups();
         for sampling in samplings.iter().flatten() {
-            scratch.add_lookups(sampling.point, &sampling.buffers.deferred);
+            sampling.buffers.deferred.add_to(scratch, sampling.point);
         }
         if scratch.directions.is_empty() {
             return;
