@@ -176,7 +176,8 @@ pub enum Mode {
 }
 
 /// N samples of one light at a shading point in the two phases of `mode`: M at α = ½, seen by
-/// an observer, then the rest at the α chosen from them.
+/// an observer, then, at the α chosen from them, the other N − M (integrated) or N fresh ones
+/// (preprocessed).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TwoPhases {
     /// N, samples per light per camera sample.
