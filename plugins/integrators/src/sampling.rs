@@ -4,8 +4,9 @@
 //! technique for all the points ([`LightSampling::phases_together`]). Its buffers are each
 //! thread's own ([`PhaseBuffers`]): nothing is allocated per sample.
 //!
-//! This is the only module that calls the estimator's drawing functions for the integrators;
-//! allocations ([`crate::allocation`]) see phases, never records being drawn.
+//! Allocations ([`crate::allocation`]) draw through it and see whole phases, never records
+//! being drawn (only `cost_alpha`'s timing of the techniques, in [`crate::pilot`], calls the
+//! estimator's drawing functions itself).
 
 use crate::aovs::LightTally;
 use crate::batch::BatchScratch;
