@@ -8,13 +8,13 @@ use lumis::accel::{Geometry, Intersection, PACKET_SIZE, Ray, RayOrigin};
 use lumis::bsdf::Bsdf;
 use lumis::emitter::{Emitter, ReferencePoint};
 use lumis::integrator::CameraSample;
-use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
-use lumis::integrators::alpha::SecondOrderMoments;
-use lumis::integrators::balance::Balance;
-use lumis::integrators::estimator::{SampleRecord, ShadingPoint};
-use lumis::integrators::phase::{Observer, Phase, PhaseRole};
+use lumis::integrators::estimator::SampleRecord;
+use lumis::integrators::phase::{Observer, Phase, PhaseRole, SampleSplit};
 use lumis::integrators::power::Power;
-use lumis::integrators::weighting::{PerSample, Weighting};
+use lumis::integrators::sampling::{LightSampling, PhaseBuffers};
+use lumis::integrators::second_order::SecondOrderMoments;
+use lumis::integrators::shading_point::ShadingPoint;
+use lumis::integrators::weighting::{Balance, PerSample, Weighting};
 use lumis::math::Rgb;
 use lumis::math::lanes::{MAX_WIDTH, limit_width};
 use lumis::sampler::Sampler;
@@ -606,15 +606,8 @@ fn alpha_estimator(c: &mut Criterion) {
                 index += 1;
                 let mut sampler = Sampler::new(0, 0, index);
                 for light in 0..scene.emitters.len() {
-                    let mut sampling = LightSampling::new(
-                        scene,
-                        &sp,
-                        light,
-                        pixel,
-                        64,
-                        &mut sampler,
-                        &mut buffers,
-                    );
+                    let mut sampling =
+                        LightSampling::new(scene, &sp, light, pixel, &mut sampler, &mut buffers);
                     black_box(sampling.phase(split, PhaseRole::ESTIMATE, &balance, observer));
                 }
             })
@@ -629,8 +622,7 @@ fn alpha_estimator(c: &mut Criterion) {
     let mut recorded = RecordedPhases::default();
     let mut sampler = Sampler::new(0, 0, 0);
     for light in 0..scene.emitters.len() {
-        let mut sampling =
-            LightSampling::new(scene, &sp, light, pixel, 64, &mut sampler, &mut buffers);
+        let mut sampling = LightSampling::new(scene, &sp, light, pixel, &mut sampler, &mut buffers);
         sampling.phase(split, PhaseRole::ESTIMATE, &balance, &mut recorded);
     }
     group.bench_function("alpha_terms_alone", |b| {
@@ -664,8 +656,7 @@ fn weighting(
         let mut sampler = Sampler::new(0, 0, 0);
         for index in 0..phases {
             let light = index % scene.emitters.len();
-            let mut sampling =
-                LightSampling::new(scene, sp, light, pixel, samples, &mut sampler, buffers);
+            let mut sampling = LightSampling::new(scene, sp, light, pixel, &mut sampler, buffers);
             sampling.phase(split, PhaseRole::ESTIMATE, &power, &mut recorded);
         }
         group.throughput(Throughput::Elements(phases as u64 * samples as u64));
@@ -704,6 +695,7 @@ impl RecordedPhases {
                 pixel,
                 light: 0,
                 split,
+                role: PhaseRole::ESTIMATE,
                 records,
             };
             (phase, contributions.as_slice())

@@ -899,11 +899,10 @@ fn the_study_default_integrators_build() {
 /// records again.
 #[test]
 fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
-    use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
-    use lumis::integrators::balance::Balance;
-    use lumis::integrators::estimator::ShadingPoint;
-    use lumis::integrators::phase::{Observer, Phase, PhaseRole};
-    use lumis::integrators::weighting::PerSample;
+    use lumis::integrators::phase::{Observer, Phase, PhaseRole, SampleSplit};
+    use lumis::integrators::sampling::{LightSampling, PhaseBuffers};
+    use lumis::integrators::shading_point::ShadingPoint;
+    use lumis::integrators::weighting::{Balance, PerSample};
 
     /// Counts what it sees.
     #[derive(Default)]
@@ -929,7 +928,7 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
     let draw = |buffers: &mut PhaseBuffers, light: usize| {
         let mut sampler = lumis::sampler::Sampler::new(5, 6, 7);
         let mut seen = Seen::default();
-        let mut sampling = LightSampling::new(scene, &sp, light, pixel, 37, &mut sampler, buffers);
+        let mut sampling = LightSampling::new(scene, &sp, light, pixel, &mut sampler, buffers);
         let value = sampling.phase(split, PhaseRole::ESTIMATE, &PerSample(Balance), &mut seen);
         let (phase, contributions) = sampling.last_phase().unwrap();
         assert_eq!(phase.split, split);
@@ -967,9 +966,8 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
 /// scene's glossy plates, where samples fail, miss and reach lights.
 #[test]
 fn bsdf_samples_take_a_fixed_count_of_numbers() {
-    use lumis::integrators::estimator::{
-        BSDF_SAMPLE_NUMBERS, Densities, ShadingPoint, draw_bsdf_samples,
-    };
+    use lumis::integrators::estimator::{BSDF_SAMPLE_NUMBERS, Densities, draw_bsdf_samples};
+    use lumis::integrators::shading_point::ShadingPoint;
     let loaded = common::load(&repo_path("scenes/veach.ron"), &[]).unwrap();
     let scene = &loaded.scene;
     let mut records = Vec::new();
@@ -1013,9 +1011,8 @@ fn bsdf_samples_take_a_fixed_count_of_numbers() {
 /// glossy, mirror and diffuse surfaces, where BSDF rays are blocked, reach the map, and fail.
 #[test]
 fn deferred_environment_lookups_give_the_same_records() {
-    use lumis::integrators::estimator::{
-        DeferredLookups, Densities, ShadingPoint, draw_bsdf_samples,
-    };
+    use lumis::integrators::estimator::{DeferredLookups, Densities, draw_bsdf_samples};
+    use lumis::integrators::shading_point::ShadingPoint;
     let loaded = common::load(&repo_path("scenes/envmap.ron"), &[]).unwrap();
     let scene = &loaded.scene;
     let light = scene
@@ -1066,8 +1063,9 @@ fn deferred_environment_lookups_give_the_same_records() {
 #[test]
 fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
     use lumis::integrators::estimator::{
-        Densities, SampleRecord, ShadingPoint, draw_bsdf_samples, draw_light_samples,
+        Densities, SampleRecord, draw_bsdf_samples, draw_light_samples,
     };
+    use lumis::integrators::shading_point::ShadingPoint;
 
     let scene_text = |occluder: &str| {
         format!(

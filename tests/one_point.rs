@@ -6,13 +6,13 @@
 //! one_point -- --nocapture` prints the table docs/integrators.md quotes.
 
 use lumis::bsdf::Bsdf;
-use lumis::integrators::allocation::SampleSplit;
-use lumis::integrators::alpha::SecondOrderMoments;
-use lumis::integrators::exact_alpha::{AlphaRule, Minimise};
+use lumis::integrators::alpha_family::AlphaRule;
+use lumis::integrators::exact_alpha::Minimise;
 use lumis::integrators::moments::{Objective, PilotSamples};
 use lumis::integrators::one_point::OnePoint;
 use lumis::integrators::optimal_mis::OptimalSystem;
-use lumis::integrators::phase::{Observer, Phase};
+use lumis::integrators::phase::{Observer, Phase, PhaseRole, SampleSplit};
+use lumis::integrators::second_order::SecondOrderMoments;
 use lumis::math::Rgb;
 use lumis::sampler::Sampler;
 
@@ -76,6 +76,7 @@ fn second_order(records: &[lumis::integrators::estimator::SampleRecord]) -> f64 
     let phase = Phase {
         pixel: glam::UVec2::ZERO,
         light: 0,
+        role: PhaseRole::ESTIMATE,
         split: SampleSplit {
             n_bsdf: PILOT / 2,
             n_light: PILOT / 2,
@@ -296,6 +297,7 @@ fn optimal_mis_weights_have_no_more_variance_than_balance_at_the_same_split() {
         let phase = Phase {
             pixel: glam::UVec2::ZERO,
             light: 0,
+            role: PhaseRole::ESTIMATE,
             split,
             records: &records,
         };
@@ -349,6 +351,7 @@ fn adaptive_alpha_between_its_limits_small_pilots_approach_the_optimum_as_m_grow
                 let phase = Phase {
                     pixel: glam::UVec2::ZERO,
                     light: 0,
+                    role: PhaseRole::ESTIMATE,
                     split: SampleSplit {
                         n_bsdf: m / 2,
                         n_light: m / 2,

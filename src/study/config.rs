@@ -98,7 +98,7 @@ impl Choice {
     pub fn spec_at(&self, samples: u32) -> Result<PluginSpec> {
         let plugin = find::<IntegratorPlugin>(&self.spec.kind)
             .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
-        if !plugin.params.iter().any(|p| p.name == mis::SAMPLES) {
+        if !mis::takes_samples(plugin) {
             bail!(
                 "--integrators `{}`: the plugin has no `{}` parameter, so the study cannot set its budget",
                 self.label,
@@ -106,10 +106,7 @@ impl Choice {
             );
         }
         let mut spec = self.spec.clone();
-        spec.params.insert(
-            mis::SAMPLES.into(),
-            Value::Number(u64::from(samples).into()),
-        );
+        mis::set_samples(&mut spec, samples);
         let offered = plugin.params.iter().find_map(|p| match p.kind {
             ParamKind::List { options } if p.name == mis::AOVS => Some(options),
             _ => None,

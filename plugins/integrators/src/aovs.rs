@@ -2,15 +2,13 @@
 //! and `samples` (docs/integrators.md). Other crates (the study, the tests) use the names below,
 //! so that renaming a layer or channel breaks their build, not their results.
 //!
-//! What the layers need is kept per pixel as sums over camera samples (the pixel's sums, see
-//! `lumis_core::integrator`): per light j, at `PER_LIGHT · j`, Σ α, the number of shading
-//! points, Σ of the light's contribution (luminance), and Σ Y, Σ Y², the number of samples Y
-//! (the one-sample estimates of the measured phases), then Σ n·s² and Σ n over the counted
-//! phases (s² a phase's unbiased variance of Y, n its sample count); then the BSDF and light
-//! sample counts.
+//! What the layers need is kept per pixel as sums over camera samples (the pixel's f64 sums, see
+//! `lumis_core::integrator`, which adds them across tiles and shards): a `LightSums` per
+//! light of the scene, then the pixel's `SampleCounts`. Each light's statistics at a shading
+//! point are gathered by a [`LightTally`], an observer of its phases.
 
-use crate::allocation::LightEstimate;
-use crate::phase::{Phase, PhaseRole};
+use crate::phase::{LightEstimate, Observer, Phase};
+use bytemuck::{Pod, Zeroable};
 use lumis_core::math::{Rgb, luminance};
 use lumis_core::output::Aov;
 use lumis_core::scene::Scene;
@@ -55,8 +53,58 @@ pub fn alpha_color(alpha: f64) -> [f32; 3] {
     [((1.0 - alpha) / m) as f32, (alpha / m) as f32, 0.0]
 }
 
-/// Sums kept per light in a pixel's sums.
-const PER_LIGHT: usize = 8;
+/// The sums a pixel keeps of one light over its shading points, in the pixel's f64 sums.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct LightSums {
+    /// Σ α.
+    alpha: f64,
+    /// The number of shading points.
+    points: f64,
+    /// Σ of the light's contribution (luminance).
+    luminance: f64,
+    /// Σ Y, Σ Y² and the number of samples Y (the one-sample estimates of the measured phases).
+    y: f64,
+    y_sq: f64,
+    y_count: f64,
+    /// Σ n·s² and Σ n over the counted phases (s² a phase's unbiased variance of Y, n its
+    /// sample count).
+    counted_variance: f64,
+    counted_samples: f64,
+}
+
+/// The BSDF and light samples counted in the pixel, after its lights' sums.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct SampleCounts {
+    bsdf: f64,
+    light: f64,
+}
+
+/// f64 sums per light in a pixel's sums.
+const PER_LIGHT: usize = size_of::<LightSums>() / size_of::<f64>();
+/// f64 sums of the sample counts, after the lights'.
+const COUNTS: usize = size_of::<SampleCounts>() / size_of::<f64>();
+
+/// A pixel's sums (as long as [`AovRequest::pixel_sums`] says) seen as what they hold: one
+/// [`LightSums`] per light, then the [`SampleCounts`]. The same memory, so that the sums still
+/// add as plain f64s.
+fn pixel_sums(sums: &[f64]) -> (&[LightSums], &SampleCounts) {
+    let (lights, counts) = sums.split_at(sums.len() - COUNTS);
+    (
+        bytemuck::cast_slice(lights),
+        bytemuck::from_bytes(bytemuck::cast_slice(counts)),
+    )
+}
+
+/// [`pixel_sums`], to add to.
+fn pixel_sums_mut(sums: &mut [f64]) -> (&mut [LightSums], &mut SampleCounts) {
+    let (lights, counts) = sums.split_at_mut(sums.len() - COUNTS);
+    (
+        bytemuck::cast_slice_mut(lights),
+        bytemuck::from_bytes_mut(bytemuck::cast_slice_mut(counts)),
+    )
+}
 
 /// Which AOV layers are written.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -66,7 +114,8 @@ pub struct AovRequest {
     pub samples: bool,
 }
 
-/// The statistics of one light at one shading point, gathered from its phases.
+/// The statistics of one light at one shading point, gathered from its phases as their roles
+/// say ([`crate::phase::PhaseRole`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LightTally {
     /// Σ Y and Σ Y² over the measured phases' samples, Y_i = n × (contribution of sample i)
@@ -84,8 +133,9 @@ pub struct LightTally {
     n_light: u32,
 }
 
-impl LightTally {
-    pub(crate) fn observe(&mut self, phase: &Phase, contributions: &[Rgb], role: PhaseRole) {
+impl Observer for LightTally {
+    fn observe(&mut self, phase: &Phase, contributions: &[Rgb]) {
+        let role = phase.role;
         if role.counted {
             self.n_bsdf += phase.split.n_bsdf;
             self.n_light += phase.split.n_light;
@@ -114,14 +164,22 @@ impl LightTally {
     }
 }
 
-/// V[L₁] of the measured phases of one light's sums ([`Y`]), if two samples or more.
-fn measured_variance(st: &[f64]) -> Option<f64> {
-    (st[5] >= 2.0).then(|| ((st[4] - st[3] * st[3] / st[5]) / (st[5] - 1.0)).max(0.0))
-}
+impl LightSums {
+    /// The mean α over the shading points, if any.
+    fn mean_alpha(&self) -> Option<f64> {
+        (self.points > 0.0).then(|| self.alpha / self.points)
+    }
 
-/// V[L₁] over the counted phases of one light's sums ([`ESTIMATE`]), if any had two samples.
-fn estimate_variance(st: &[f64]) -> Option<f64> {
-    (st[7] > 0.0).then(|| st[6] / st[7])
+    /// V[L₁] of the measured phases ([`Y`]), if two samples or more.
+    fn measured_variance(&self) -> Option<f64> {
+        (self.y_count >= 2.0)
+            .then(|| ((self.y_sq - self.y * self.y / self.y_count) / (self.y_count - 1.0)).max(0.0))
+    }
+
+    /// V[L₁] over the counted phases ([`ESTIMATE`]), if any had two samples.
+    fn estimate_variance(&self) -> Option<f64> {
+        (self.counted_samples > 0.0).then(|| self.counted_variance / self.counted_samples)
+    }
 }
 
 fn area_lights(scene: &Scene) -> impl Iterator<Item = usize> + '_ {
@@ -187,7 +245,7 @@ impl AovRequest {
     /// Sums per pixel: none unless a layer is asked for.
     pub fn pixel_sums(&self, scene: &Scene) -> usize {
         if self.any() {
-            PER_LIGHT * scene.emitters.len() + 2
+            PER_LIGHT * scene.emitters.len() + COUNTS
         } else {
             0
         }
@@ -201,18 +259,18 @@ impl AovRequest {
         estimate: &LightEstimate,
         tally: &LightTally,
     ) {
-        let lights = (sums.len() - 2) / PER_LIGHT;
-        let st = &mut sums[PER_LIGHT * light..PER_LIGHT * (light + 1)];
-        st[0] += estimate.alpha;
-        st[1] += 1.0;
-        st[2] += luminance(estimate.value) as f64;
-        st[3] += tally.sum;
-        st[4] += tally.sum_sq;
-        st[5] += tally.count as f64;
-        st[6] += tally.counted_variance;
-        st[7] += tally.counted_samples;
-        sums[PER_LIGHT * lights] += tally.n_bsdf as f64;
-        sums[PER_LIGHT * lights + 1] += tally.n_light as f64;
+        let (lights, counts) = pixel_sums_mut(sums);
+        let sums = &mut lights[light];
+        sums.alpha += estimate.alpha;
+        sums.points += 1.0;
+        sums.luminance += luminance(estimate.value) as f64;
+        sums.y += tally.sum;
+        sums.y_sq += tally.sum_sq;
+        sums.y_count += tally.count as f64;
+        sums.counted_variance += tally.counted_variance;
+        sums.counted_samples += tally.counted_samples;
+        counts.bsdf += tally.n_bsdf as f64;
+        counts.light += tally.n_light as f64;
     }
 
     /// The pixel's AOV values from its sums, in the order of [`declare`](Self::declare).
@@ -220,7 +278,7 @@ impl AovRequest {
         if !self.any() {
             return;
         }
-        let stats = |j: usize| &sums[PER_LIGHT * j..PER_LIGHT * (j + 1)];
+        let (stats, counts) = pixel_sums(sums);
         let mut aov = aovs.iter_mut();
         let mut put = |v: f32| {
             if let Some(slot) = aov.next() {
@@ -228,15 +286,12 @@ impl AovRequest {
             }
         };
         if self.alpha {
-            let alpha_of = |j: usize| {
-                let st = stats(j);
-                (st[1] > 0.0).then(|| st[0] / st[1])
-            };
+            let alpha_of = |j: usize| stats[j].mean_alpha();
             // Combined: weighted by each light's contribution (a plain mean if all are black).
-            let weight: f64 = area_lights(scene).map(|j| stats(j)[2]).sum();
+            let weight: f64 = area_lights(scene).map(|j| stats[j].luminance).sum();
             let combined = if weight > 0.0 {
                 area_lights(scene)
-                    .filter_map(|j| alpha_of(j).map(|a| a * stats(j)[2]))
+                    .filter_map(|j| alpha_of(j).map(|a| a * stats[j].luminance))
                     .sum::<f64>()
                     / weight
             } else {
@@ -268,20 +323,15 @@ impl AovRequest {
                 }
             }
         }
-        let lights = scene.emitters.len();
         if self.sampling_variance {
-            let variance: f64 = (0..lights)
-                .filter_map(|j| measured_variance(stats(j)))
-                .sum();
+            let variance: f64 = stats.iter().filter_map(LightSums::measured_variance).sum();
             put(variance as f32);
-            let estimate: f64 = (0..lights)
-                .filter_map(|j| estimate_variance(stats(j)))
-                .sum();
+            let estimate: f64 = stats.iter().filter_map(LightSums::estimate_variance).sum();
             put(estimate as f32);
         }
         if self.samples {
-            put(sums[PER_LIGHT * lights] as f32);
-            put(sums[PER_LIGHT * lights + 1] as f32);
+            put(counts.bsdf as f32);
+            put(counts.light as f32);
         }
     }
 }
@@ -289,9 +339,8 @@ impl AovRequest {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::allocation::SampleSplit;
     use crate::estimator::SampleRecord;
-    use crate::phase::PhaseRole;
+    use crate::phase::{PhaseRole, SampleSplit};
 
     /// Shows the tally a phase of `n_bsdf + n_light` samples whose one-sample estimates Y are
     /// `values` (grey contributions Y / n).
@@ -301,10 +350,13 @@ mod tests {
             n_light: values.len() as u32 - n_bsdf,
         };
         let records = vec![SampleRecord::default(); values.len()];
-        let phase = Phase::of(split, &records);
+        let phase = Phase {
+            role,
+            ..Phase::of(split, &records)
+        };
         let n = values.len() as f32;
         let contributions: Vec<Rgb> = values.iter().map(|&y| Rgb::splat(y / n)).collect();
-        tally.observe(&phase, &contributions, role);
+        tally.observe(&phase, &contributions);
     }
 
     fn unbiased_variance(values: &[f64]) -> f64 {
@@ -331,7 +383,7 @@ mod tests {
         observe(&mut tally, 5, &second, PhaseRole::ESTIMATE);
 
         // One light, one shading point: the sums of one pixel.
-        let mut sums = vec![0.0; PER_LIGHT + 2];
+        let mut sums = vec![0.0; PER_LIGHT + COUNTS];
         let estimate = LightEstimate {
             value: Rgb::ZERO,
             alpha: 0.5,
@@ -344,11 +396,15 @@ mod tests {
         );
         let paper_basis = (4.0 * v1 + 6.0 * v2) / 10.0;
         // The pilot that only steers is not counted either.
+        let (lights, counts) = pixel_sums(&sums);
+        assert_eq!((counts.bsdf, counts.light), (7.0, 3.0));
+        // The typed sums are the f64 sums themselves, in order.
         assert_eq!((sums[PER_LIGHT], sums[PER_LIGHT + 1]), (7.0, 3.0));
+        assert_eq!(sums[..2], [0.5, 1.0], "Σ α and the shading points first");
 
         let (measured, all) = (
-            measured_variance(&sums[..PER_LIGHT]).expect("six measured samples"),
-            estimate_variance(&sums[..PER_LIGHT]).expect("ten counted samples"),
+            lights[0].measured_variance().expect("six measured samples"),
+            lights[0].estimate_variance().expect("ten counted samples"),
         );
         assert!((measured - v2).abs() < 1e-9 * v2, "{measured} {v2}");
         assert!(

@@ -8,10 +8,10 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::allocation::FixedAlpha;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
-use crate::weighting::{Heuristic, PerSample};
-use glam::Vec4;
+use crate::allocation::Weighted;
+use crate::fixed_alpha::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
+use crate::weighting::{Balance, PerSample};
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -19,26 +19,15 @@ use lumis_core::registry::IntegratorPlugin;
 /// The plugin's name in scene files.
 pub const NAME: &str = "balance";
 
-/// w_i = n_i p_i / Σ_k n_k p_k, written with the ratio r = other / mine so that huge or tiny
-/// products neither overflow nor divide 0 by 0.
-pub struct Balance;
-
-impl Heuristic for Balance {
-    #[inline]
-    fn weight(&self, mine: f32, other: f32) -> f32 {
-        1.0 / (1.0 + other / mine)
-    }
-
-    #[inline]
-    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-        Vec4::ONE / (Vec4::ONE + other / mine)
-    }
-}
-
 static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    MisIntegrator::boxed(params, FixedAlpha { alpha: 0.5 }, PerSample(Balance))
+    let samples = read_samples(params)?;
+    let allocation = FixedAlpha {
+        alpha: 0.5,
+        samples,
+    };
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 
 inventory::submit! {
@@ -52,8 +41,79 @@ inventory::submit! {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use crate::estimator::SampleRecord;
+    use crate::phase::{Phase, SampleSplit};
+    use crate::weighting::{
+        Weighting, assert_partition_of_unity, assert_small_phases_weigh_as_the_lanes_do,
+    };
+    use lumis_core::math::Rgb;
+    use lumis_core::sampler::Sampler;
+
     #[test]
     fn weights_are_a_partition_of_unity() {
-        crate::weighting::assert_partition_of_unity(&super::Balance);
+        assert_partition_of_unity(&Balance);
+    }
+
+    #[test]
+    fn small_phases_weigh_as_the_lanes_do() {
+        assert_small_phases_weigh_as_the_lanes_do(&Balance);
+    }
+
+    /// Random records of both techniques, some black, one Dirac (a BSDF sample).
+    fn records(split: SampleSplit) -> Vec<SampleRecord> {
+        let mut s = Sampler::new(3, 4, 5);
+        let mut v: Vec<SampleRecord> = (0..split.total())
+            .map(|i| SampleRecord {
+                f: if i % 5 == 0 {
+                    Rgb::ZERO
+                } else {
+                    Rgb::new(s.next_1d(), s.next_1d(), s.next_1d())
+                },
+                p_bsdf: 0.1 + 3.0 * s.next_1d(),
+                // Some BSDF samples in directions the light cannot produce.
+                p_light: if i < split.n_bsdf && i % 7 == 0 {
+                    0.0
+                } else {
+                    0.1 + 3.0 * s.next_1d()
+                },
+                delta: false,
+            })
+            .collect();
+        v[1].delta = true;
+        v[1].p_light = 0.0;
+        v
+    }
+
+    /// The balance heuristic is the mixture (defensive) estimator Σ f / (n_B p_B + n_L p_L)
+    /// over all samples (a Dirac sample contributing f / n_B), computed here independently.
+    #[test]
+    fn balance_is_the_mixture_estimator() {
+        for split in [
+            SampleSplit::new(0.5, 16),
+            SampleSplit::new(0.2, 11),
+            SampleSplit::new(0.9, 13),
+        ] {
+            let records = records(split);
+            let phase = Phase::of(split, &records);
+            let mut contributions = vec![Rgb::ZERO; records.len()];
+            let value = PerSample(Balance).weigh(&phase, &mut contributions);
+            let (n_b, n_l) = (split.n_bsdf as f64, split.n_light as f64);
+            let mut expected = glam::DVec3::ZERO;
+            for r in &records {
+                if r.delta {
+                    expected += r.f.as_dvec3() / n_b;
+                } else if !r.is_black() {
+                    let mix = n_b * r.p_bsdf as f64 + n_l * r.p_light as f64;
+                    expected += r.f.as_dvec3() / mix;
+                }
+            }
+            let sum: Rgb = contributions.iter().copied().sum();
+            assert!(
+                (value.as_dvec3() - expected).abs().max_element() < 1e-5 * expected.max_element(),
+                "{split:?}: {value} vs {expected}"
+            );
+            assert_eq!(sum, value, "contributions add up to the estimate");
+        }
     }
 }

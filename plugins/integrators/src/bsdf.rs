@@ -6,10 +6,10 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::allocation::FixedAlpha;
-use crate::balance::Balance;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
-use crate::weighting::PerSample;
+use crate::allocation::Weighted;
+use crate::fixed_alpha::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
+use crate::weighting::{Balance, PerSample};
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -21,7 +21,12 @@ static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     // With n_L = 0 every weight is 1, whatever the heuristic.
-    MisIntegrator::boxed(params, FixedAlpha { alpha: 1.0 }, PerSample(Balance))
+    let samples = read_samples(params)?;
+    let allocation = FixedAlpha {
+        alpha: 1.0,
+        samples,
+    };
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 
 inventory::submit! {

@@ -27,15 +27,15 @@
 //!   costs of each light on the scene.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 
-use crate::balance::Balance;
-use crate::exact_alpha::{
-    ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, VARIANCE_SPEC, read_clamp,
-    read_mode, read_stratified,
+use crate::allocation::Weighted;
+use crate::alpha_family::{
+    ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, TwoPhases, VARIANCE_SPEC,
+    read_clamp, read_mode, read_stratified,
 };
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
 use crate::pilot::{SampleCosts, measure_costs};
-use crate::weighting::PerSample;
+use crate::weighting::{Balance, PerSample};
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
@@ -112,7 +112,11 @@ impl AlphaRule for CostAware {
 }
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let mode = read_mode(params)?;
+    let samples = read_samples(params)?;
+    let phases = TwoPhases {
+        samples,
+        mode: read_mode(params, samples)?,
+    };
     let clamp = read_clamp(params)?;
     let stratified = read_stratified(params)?;
     let ratio = params.float(COST_RATIO)? as f64;
@@ -121,8 +125,12 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         ratio: (ratio > 0.0).then_some(ratio),
         costs: Vec::new(),
     };
-    let allocation = PilotAlpha { mode, clamp, rule };
-    MisIntegrator::boxed(params, allocation, PerSample(Balance))
+    let allocation = PilotAlpha {
+        phases,
+        clamp,
+        rule,
+    };
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 
 inventory::submit! {

@@ -15,8 +15,9 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::allocation::FixedAlpha;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::allocation::Weighted;
+use crate::fixed_alpha::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::weighting::{Heuristic, PerSample};
 use glam::Vec4;
 use lumis_core::integrator::Integrator;
@@ -70,11 +71,15 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let samples = read_samples(params)?;
     let threshold = params.float(THRESHOLD)?;
+    let allocation = FixedAlpha {
+        alpha: 0.5,
+        samples,
+    };
     MisIntegrator::boxed(
         params,
-        FixedAlpha { alpha: 0.5 },
-        PerSample(Cutoff { threshold }),
+        Weighted(allocation, PerSample(Cutoff { threshold })),
     )
 }
 
@@ -90,15 +95,21 @@ inventory::submit! {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::balance::Balance;
     use crate::max::Maximum;
-    use crate::weighting::assert_partition_of_unity;
+    use crate::weighting::{
+        Balance, assert_partition_of_unity, assert_small_phases_weigh_as_the_lanes_do,
+    };
 
     #[test]
     fn weights_are_a_partition_of_unity() {
         for threshold in [0.0, 0.01, 0.1, 0.5, 0.999, 1.0] {
             assert_partition_of_unity(&Cutoff { threshold });
         }
+    }
+
+    #[test]
+    fn small_phases_weigh_as_the_lanes_do() {
+        assert_small_phases_weigh_as_the_lanes_do(&Cutoff { threshold: 0.1 });
     }
 
     #[test]

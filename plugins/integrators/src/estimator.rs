@@ -12,95 +12,15 @@
 //! The records of one technique are drawn together into a buffer the caller reuses (no
 //! allocation per sample), so that a method weighs and observes them as plain slices.
 
-use glam::{Vec2, Vec3};
-use lumis_core::accel::{FirstHit, Intersection, Ray, RayOrigin};
-use lumis_core::bsdf::{Bsdf, BsdfSample};
+use crate::batch::BatchScratch;
+use crate::shading_point::ShadingPoint;
+use glam::Vec3;
+use lumis_core::accel::{FirstHit, Intersection, Ray};
+use lumis_core::bsdf::BsdfSample;
 use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
-use lumis_core::math::{Frame, Rgb};
+use lumis_core::math::Rgb;
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
-use std::cell::RefCell;
-
-/// A surface point seen by the camera, with its shading frame turned toward the viewer
-/// (surfaces are two-sided).
-pub struct ShadingPoint<'a> {
-    pub hit: Intersection,
-    pub frame: Frame,
-    /// Geometric normal on the viewer's side.
-    pub normal: Vec3,
-    /// ωo in the local shading frame.
-    pub wo: Vec3,
-    pub bsdf: &'a dyn Bsdf,
-    /// Where its shadow and BSDF rays start (those on the viewer's side).
-    pub origin: RayOrigin,
-    /// The rounding error of the point across its surface's plane, |n| · error.
-    plane_error: f32,
-}
-
-impl<'a> ShadingPoint<'a> {
-    /// The shading point of `hit`, seen from `wo_world`. Inlined, so that it is built where it
-    /// is kept: built apart, it was copied there, and the copy read it back in 64-byte pieces
-    /// just after its narrower stores, waiting for them to reach the cache.
-    #[inline(always)]
-    pub fn new(scene: &'a Scene, hit: Intersection, wo_world: Vec3) -> Self {
-        let flip = hit.geometric_normal.dot(wo_world) < 0.0;
-        let sign = if flip { -1.0 } else { 1.0 };
-        let frame = Frame::from_normal(sign * hit.shading_normal);
-        ShadingPoint {
-            frame,
-            normal: sign * hit.geometric_normal,
-            wo: frame.to_local(wo_world),
-            bsdf: scene.bsdf(&hit),
-            origin: RayOrigin::toward(&hit, wo_world),
-            plane_error: hit.geometric_normal.abs().dot(hit.error),
-            hit,
-        }
-    }
-
-    /// Whether the BSDF is a Dirac lobe only (a mirror), which light sampling can never reach.
-    pub fn is_pure_delta(&self) -> bool {
-        let flags = self.bsdf.flags();
-        flags.delta && !flags.diffuse && !flags.glossy
-    }
-
-    /// Reflection only: ωi must leave on the viewer's side of the geometric surface, or shading
-    /// normals would let light leak through.
-    #[inline]
-    fn reflects_toward(&self, wi_world: Vec3) -> bool {
-        self.normal.dot(wi_world) > 0.0
-    }
-
-    /// Whether a sample of light `light` is unoccluded: a shadow ray to its point, or to
-    /// infinity.
-    fn sees(&self, scene: &Scene, light: usize, sample: &EmitterSample) -> bool {
-        let ray = match sample.position {
-            Some(target) => self.origin.ray_to(&self.hit, target),
-            None => self.origin.ray(&self.hit, sample.wi),
-        };
-        !scene.occluded_toward_light(&ray, &self.hit, light)
-    }
-
-    /// Whether the surface can reflect toward a light sample: ωi on the viewer's side of the
-    /// geometric surface. A light point closer to the surface's plane than the rounding error of
-    /// the shading point (a light lying on the surface) is on no definite side of it, and lights
-    /// nothing.
-    fn reflects_toward_sample(&self, sample: &EmitterSample) -> bool {
-        let height = self.normal.dot(sample.wi);
-        // The distance (a square root) only where the sample is on the viewer's side.
-        height > 0.0
-            && !sample
-                .position
-                .is_some_and(|p| height * (p - self.hit.position).length() <= self.plane_error)
-    }
-
-    /// BSDF value (with cosine) toward a light sample, zero when it cannot reflect there.
-    fn eval_toward(&self, sample: &EmitterSample) -> Rgb {
-        if !self.reflects_toward_sample(sample) {
-            return Rgb::ZERO;
-        }
-        self.bsdf.eval(self.wo, self.frame.to_local(sample.wi))
-    }
-}
 
 /// One sample of one light at one shading point, as every MIS method sees it. Every drawn
 /// sample has a record, black ones included, so that a batch of n records is exactly the n
@@ -322,7 +242,7 @@ impl DeferredLookups {
     ) {
         BatchScratch::with_thread_local(|scratch| {
             scratch.clear_lookups();
-            scratch.add_lookups(sp, self);
+            self.add_to(scratch, sp);
             let values = scratch.look_up(scene.emitters[light].as_ref());
             self.fill(records, values.copied());
         });
@@ -344,150 +264,22 @@ impl DeferredLookups {
     pub(crate) fn is_empty(&self) -> bool {
         self.0.is_empty()
     }
+
+    /// Adds these lookups, left at shading point `sp`, to `scratch`'s batch.
+    pub(crate) fn add_to(&self, scratch: &mut BatchScratch, sp: &ShadingPoint) {
+        let reference = ReferencePoint {
+            position: sp.hit.position,
+        };
+        for d in &self.0 {
+            scratch.directions.push(d.wi);
+            scratch.references.push(reference);
+        }
+    }
 }
 
 /// Numbers a BSDF sample takes from the camera sample's stream (lobe choice, then direction),
 /// drawn or not: what follows a phase's BSDF samples is known in advance.
 pub const BSDF_SAMPLE_NUMBERS: u32 = 3;
-
-/// Space for the batch calls of the estimator ([`Bsdf::sample_batch`],
-/// [`Emitter::sample_direction_batch`], [`Bsdf::eval_pdf_batch`]): their inputs and results,
-/// one entry per sample, reused by each thread so that no sample allocates.
-///
-/// [`Bsdf::sample_batch`]: lumis_core::bsdf::Bsdf::sample_batch
-/// [`Bsdf::eval_pdf_batch`]: lumis_core::bsdf::Bsdf::eval_pdf_batch
-/// [`Emitter::sample_direction_batch`]: lumis_core::emitter::Emitter::sample_direction_batch
-#[derive(Default)]
-pub(crate) struct BatchScratch {
-    /// The shading point each entry belongs to (an index the caller gives meaning to).
-    pub(crate) owners: Vec<usize>,
-    /// ωo of each entry's shading point.
-    pub(crate) wo: Vec<Vec3>,
-    pub(crate) bsdf_numbers: Vec<(f32, Vec2)>,
-    pub(crate) bsdf_samples: Vec<Option<BsdfSample>>,
-    pub(crate) references: Vec<ReferencePoint>,
-    pub(crate) light_numbers: Vec<Vec2>,
-    pub(crate) light_samples: Vec<Option<EmitterSample>>,
-    /// Each light sample's direction in its shading point's frame.
-    pub(crate) directions: Vec<Vec3>,
-    /// The BSDF's `eval_pdf` toward each light sample.
-    pub(crate) values: Vec<(Rgb, f32)>,
-}
-
-thread_local! {
-    static BATCH_SCRATCH: RefCell<BatchScratch> = RefCell::new(BatchScratch::default());
-}
-
-impl BatchScratch {
-    /// Runs `f` with this thread's scratch space. Not re-entrant.
-    pub(crate) fn with_thread_local<R>(f: impl FnOnce(&mut BatchScratch) -> R) -> R {
-        BATCH_SCRATCH.with_borrow_mut(f)
-    }
-
-    /// Empties every list (keeping their memory).
-    pub(crate) fn clear(&mut self) {
-        self.owners.clear();
-        self.wo.clear();
-        self.bsdf_numbers.clear();
-        self.bsdf_samples.clear();
-        self.references.clear();
-        self.light_numbers.clear();
-        self.light_samples.clear();
-        self.directions.clear();
-        self.values.clear();
-    }
-
-    /// Starts a batch of deferred lookups ([`DeferredLookups`]) in `references` and
-    /// `directions`.
-    pub(crate) fn clear_lookups(&mut self) {
-        self.references.clear();
-        self.directions.clear();
-    }
-
-    /// Adds the lookups `lookups` left at shading point `sp` to the batch.
-    pub(crate) fn add_lookups(&mut self, sp: &ShadingPoint, lookups: &DeferredLookups) {
-        let reference = ReferencePoint {
-            position: sp.hit.position,
-        };
-        for d in &lookups.0 {
-            self.directions.push(d.wi);
-            self.references.push(reference);
-        }
-    }
-
-    /// The batch's lookups with one [`Emitter::eval_pdf_batch`] call of `emitter`: radiance
-    /// and density along each direction, in the order they were added.
-    pub(crate) fn look_up(&mut self, emitter: &dyn Emitter) -> std::slice::Iter<'_, (Rgb, f32)> {
-        self.values.clear();
-        self.values.resize(self.directions.len(), (Rgb::ZERO, 0.0));
-        emitter.eval_pdf_batch(&self.references, &self.directions, &mut self.values);
-        self.values.iter()
-    }
-
-    /// The BSDF samples of the entries in `bsdf_numbers`, with `wo`, into `bsdf_samples`: one
-    /// batch call per run of consecutive entries whose shading points (`owner`'s) share a BSDF.
-    pub(crate) fn sample_bsdfs<'a>(&mut self, bsdf_of: impl Fn(usize) -> &'a dyn Bsdf) {
-        self.bsdf_samples.resize(self.bsdf_numbers.len(), None);
-        for_runs(&self.owners, &bsdf_of, |bsdf, run| {
-            bsdf.sample_batch(
-                &self.wo[run.clone()],
-                &self.bsdf_numbers[run.clone()],
-                &mut self.bsdf_samples[run],
-            );
-        });
-    }
-
-    /// The light samples of the entries in `light_numbers` from `references`, into
-    /// `light_samples`, and the BSDF toward each (`directions` in its shading point's frame,
-    /// `frame_of(owner)`), into `values`: one batch call for the light, one per run of
-    /// consecutive entries whose shading points share a BSDF for the BSDF.
-    pub(crate) fn sample_light<'a>(
-        &mut self,
-        emitter: &dyn Emitter,
-        point_of: impl Fn(usize) -> &'a ShadingPoint<'a>,
-    ) {
-        let n = self.light_numbers.len();
-        self.light_samples.resize(n, None);
-        emitter.sample_direction_batch(
-            &self.references,
-            &self.light_numbers,
-            &mut self.light_samples,
-        );
-        // The BSDF toward every sample at once; a sample it cannot reflect toward has its value
-        // ignored, as `light_record` would not have asked for it.
-        self.directions.extend(
-            self.light_samples
-                .iter()
-                .zip(&self.owners)
-                .map(|(ls, &owner)| ls.map_or(Vec3::Z, |ls| point_of(owner).frame.to_local(ls.wi))),
-        );
-        self.values.resize(n, (Rgb::ZERO, 0.0));
-        for_runs(&self.owners, &|owner| point_of(owner).bsdf, |bsdf, run| {
-            bsdf.eval_pdf_batch(
-                &self.wo[run.clone()],
-                &self.directions[run.clone()],
-                &mut self.values[run],
-            );
-        });
-    }
-}
-
-/// Calls `f(bsdf, range)` for each run of consecutive entries of `owners` whose owners have the
-/// same BSDF (`bsdf_of`).
-fn for_runs<'a>(
-    owners: &[usize],
-    bsdf_of: &impl Fn(usize) -> &'a dyn Bsdf,
-    mut f: impl FnMut(&'a dyn Bsdf, std::ops::Range<usize>),
-) {
-    let mut start = 0;
-    while start < owners.len() {
-        let bsdf = bsdf_of(owners[start]);
-        let same = |&owner: &usize| std::ptr::addr_eq(bsdf_of(owner), bsdf);
-        let end = start + owners[start..].iter().take_while(|o| same(o)).count();
-        f(bsdf, start..end);
-        start = end;
-    }
-}
 
 /// Draws `count` BSDF samples for non-delta light `light` at `sp` and appends their records,
 /// with the densities `densities` asks for. Each sample takes [`BSDF_SAMPLE_NUMBERS`] numbers

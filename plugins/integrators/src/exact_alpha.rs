@@ -26,77 +26,32 @@
 //! wherever one did. Unbiased in both modes: α depends only on samples the estimate at α does
 //! not reuse.
 
-use crate::allocation::{Allocation, LightEstimate, LightSampling};
-use crate::alpha::Mode;
-use crate::balance::Balance;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::allocation::Weighted;
+use crate::alpha_family::{
+    self, ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, TwoPhases,
+    VARIANCE_SPEC, read_clamp, read_mode, read_stratified,
+};
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
-use crate::weighting::{PerSample, Weighting};
+use crate::weighting::{Balance, PerSample};
 use lumis_core::integrator::Integrator;
-use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
-use lumis_core::scene::Scene;
 
 /// The plugin's name in scene files.
 pub const NAME: &str = "exact_alpha";
 /// Parameter: how the pilot is used, [`INTEGRATED`] or [`PREPROCESSED`].
-pub const MODE: &str = crate::alpha::MODE;
-pub const INTEGRATED: &str = crate::alpha::INTEGRATED;
-pub const PREPROCESSED: &str = crate::alpha::PREPROCESSED;
+pub const MODE: &str = alpha_family::MODE;
+pub const INTEGRATED: &str = alpha_family::INTEGRATED;
+pub const PREPROCESSED: &str = alpha_family::PREPROCESSED;
 /// Parameter: M, the pilot samples at α = ½.
-pub const ALPHA_SAMPLES: &str = crate::alpha::ALPHA_SAMPLES;
+pub const ALPHA_SAMPLES: &str = alpha_family::ALPHA_SAMPLES;
 /// Parameter: the interval α is chosen in.
-pub const CLAMP: &str = crate::alpha::CLAMP;
+pub const CLAMP: &str = alpha_family::CLAMP;
 /// Parameter: which variance is minimised, [`MIXTURE`] or [`STRATIFIED`].
-pub const VARIANCE: &str = "variance";
-pub const MIXTURE: &str = "mixture";
-pub const STRATIFIED: &str = "stratified";
-
-/// `mode`, shared with `cost_alpha`.
-pub const MODE_SPEC: ParamSpec = ParamSpec {
-    name: MODE,
-    kind: ParamKind::Choice {
-        options: &[INTEGRATED, PREPROCESSED],
-        default: INTEGRATED,
-    },
-    unit: "",
-    description: "integrated: the pilot's samples are part of the estimate (paper Table 2); preprocessed: a separate pilot (Table 1)",
-};
-
-/// `alpha_samples`, shared with `cost_alpha`.
-pub const ALPHA_SAMPLES_SPEC: ParamSpec = ParamSpec {
-    name: ALPHA_SAMPLES,
-    kind: ParamKind::Int {
-        default: Some(0),
-        min: 0,
-        max: 1 << 20,
-    },
-    unit: "",
-    description: "M, pilot samples at α = ½ (0: N/2 integrated, 4096 preprocessed)",
-};
-
-/// `clamp`, shared with `cost_alpha`.
-pub const CLAMP_SPEC: ParamSpec = ParamSpec {
-    name: CLAMP,
-    kind: ParamKind::Interval {
-        default: [0.025, 0.975],
-        min: 0.0,
-        max: 1.0,
-    },
-    unit: "",
-    description: "interval α is chosen in",
-};
-
-/// `variance`, shared with `cost_alpha`.
-pub const VARIANCE_SPEC: ParamSpec = ParamSpec {
-    name: VARIANCE,
-    kind: ParamKind::Choice {
-        options: &[MIXTURE, STRATIFIED],
-        default: MIXTURE,
-    },
-    unit: "",
-    description: "variance minimised: of the mixture estimator (as the paper) or of the stratified estimator the integrators use",
-};
+pub const VARIANCE: &str = alpha_family::VARIANCE;
+pub const MIXTURE: &str = alpha_family::MIXTURE;
+pub const STRATIFIED: &str = alpha_family::STRATIFIED;
 
 static PARAMS: &[ParamSpec] = &[
     SAMPLES_SPEC,
@@ -107,15 +62,6 @@ static PARAMS: &[ParamSpec] = &[
     AOVS_SPEC,
 ];
 
-/// How α is chosen from a pilot's records (drawn at α = ½).
-pub trait AlphaRule: Send + Sync {
-    /// α in `clamp` for light `light`, or `None` if the pilot says nothing about it.
-    fn alpha(&self, pilot: &PilotSamples, light: usize, clamp: [f64; 2]) -> Option<f64>;
-
-    /// Work once per scene before rendering (e.g. measuring the costs of the techniques).
-    fn preprocess(&mut self, _scene: &Scene) {}
-}
-
 /// Minimises a fixed objective of the pilot exactly ([`PilotSamples::minimise`]).
 pub struct Minimise(pub Objective);
 
@@ -125,95 +71,12 @@ impl AlphaRule for Minimise {
     }
 }
 
-/// The paper's two uses of a pilot at α = ½ (integrated and preprocessed, see [`Mode`]), with
-/// α chosen from the pilot's records by `rule`.
-pub struct PilotAlpha<R> {
-    pub mode: Mode,
-    pub clamp: [f64; 2],
-    pub rule: R,
-}
-
-impl<R: AlphaRule> PilotAlpha<R> {
-    /// α from the last phase `sampling` drew (the pilot), ½ clamped if it says nothing.
-    fn alpha_of_last_phase(&self, sampling: &LightSampling) -> f64 {
-        let light = sampling.light();
-        sampling
-            .last_phase()
-            .and_then(|(phase, _)| {
-                self.rule
-                    .alpha(&PilotSamples::new(&phase), light, self.clamp)
-            })
-            .unwrap_or(0.5)
-            .clamp(self.clamp[0], self.clamp[1])
-    }
-}
-
-impl<R: AlphaRule> Allocation for PilotAlpha<R> {
-    fn estimate<W: Weighting + ?Sized>(
-        &self,
-        sampling: &mut LightSampling,
-        weighting: &W,
-    ) -> LightEstimate {
-        self.mode
-            .estimate(sampling, weighting, &mut (), |sampling, _| {
-                self.alpha_of_last_phase(sampling)
-            })
-    }
-
-    fn estimate_together<W: Weighting + ?Sized>(
-        &self,
-        samplings: &mut [Option<LightSampling>],
-        weighting: &W,
-        estimates: &mut [LightEstimate],
-    ) {
-        self.mode.estimate_together(
-            samplings,
-            weighting,
-            |sampling, _: &()| self.alpha_of_last_phase(sampling),
-            estimates,
-        );
-    }
-
-    fn preprocess(&mut self, scene: &Scene) {
-        self.rule.preprocess(scene);
-    }
-}
-
-/// Reads `mode` and `alpha_samples` (0: N/2 integrated, 4096 preprocessed; M ≤ N integrated).
-pub fn read_mode(params: &mut Params) -> Result<Mode, PluginError> {
-    let n = params.int(SAMPLES_SPEC.name)? as u32;
-    let given = params.int(ALPHA_SAMPLES)? as u32;
-    match params.choice(MODE)? {
-        INTEGRATED => {
-            let alpha_samples = if given == 0 { n / 2 } else { given };
-            if alpha_samples > n {
-                return Err(PluginError::Invalid(format!(
-                    "{}: `{ALPHA_SAMPLES}` ({alpha_samples}) cannot exceed `{}` ({n}) in integrated mode",
-                    params.plugin(),
-                    SAMPLES_SPEC.name
-                )));
-            }
-            Ok(Mode::Integrated { alpha_samples })
-        }
-        _ => Ok(Mode::Preprocessed {
-            alpha_samples: if given == 0 { 4096 } else { given },
-        }),
-    }
-}
-
-/// Reads `clamp`.
-pub fn read_clamp(params: &mut Params) -> Result<[f64; 2], PluginError> {
-    let [lo, hi] = params.interval(CLAMP)?;
-    Ok([lo as f64, hi as f64])
-}
-
-/// Reads `variance`: whether the stratified estimator's variance is minimised.
-pub fn read_stratified(params: &mut Params) -> Result<bool, PluginError> {
-    Ok(params.choice(VARIANCE)? == STRATIFIED)
-}
-
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let mode = read_mode(params)?;
+    let samples = read_samples(params)?;
+    let phases = TwoPhases {
+        samples,
+        mode: read_mode(params, samples)?,
+    };
     let clamp = read_clamp(params)?;
     let objective = if read_stratified(params)? {
         Objective::Stratified
@@ -221,11 +84,11 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         Objective::Mixture
     };
     let allocation = PilotAlpha {
-        mode,
+        phases,
         clamp,
         rule: Minimise(objective),
     };
-    MisIntegrator::boxed(params, allocation, PerSample(Balance))
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 
 inventory::submit! {

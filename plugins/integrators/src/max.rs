@@ -8,8 +8,9 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::allocation::FixedAlpha;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::allocation::Weighted;
+use crate::fixed_alpha::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::weighting::{Heuristic, PerSample};
 use glam::Vec4;
 use lumis_core::integrator::Integrator;
@@ -38,7 +39,12 @@ impl Heuristic for Maximum {
 static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    MisIntegrator::boxed(params, FixedAlpha { alpha: 0.5 }, PerSample(Maximum))
+    let samples = read_samples(params)?;
+    let allocation = FixedAlpha {
+        alpha: 0.5,
+        samples,
+    };
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Maximum)))
 }
 
 inventory::submit! {
@@ -52,8 +58,16 @@ inventory::submit! {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use crate::weighting::{assert_partition_of_unity, assert_small_phases_weigh_as_the_lanes_do};
+
     #[test]
     fn weights_are_a_partition_of_unity() {
-        crate::weighting::assert_partition_of_unity(&super::Maximum);
+        assert_partition_of_unity(&Maximum);
+    }
+
+    #[test]
+    fn small_phases_weigh_as_the_lanes_do() {
+        assert_small_phases_weigh_as_the_lanes_do(&Maximum);
     }
 }

@@ -1,20 +1,24 @@
 //! The MIS integrator family: direct lighting at the first surface a camera ray hits, each
-//! non-delta light estimated with N samples by an [`Allocation`] (how many samples each
-//! technique gets, in which phases) and a [`Weighting`] (how a phase's samples combine), delta
+//! non-delta light estimated with N samples by a [`Method`] (an allocation, how many samples
+//! each technique gets in which phases, with a weighting, how a phase's samples combine), delta
 //! lights with one sample each, and emission seen by the camera added once. A plugin of the
-//! family is one file that picks the two (e.g. `balance`: α = ½, balance weights) and
+//! family is one file that picks the method (e.g. `balance`: α = ½, balance weights) and
 //! registers itself.
 
-use crate::allocation::{Allocation, LightEstimate, LightSampling, PhaseBuffers};
+use crate::allocation::Method;
 use crate::aovs::{self, AovRequest, LightTally};
-use crate::estimator::{ShadingPoint, emitted, estimate_delta_light};
-use crate::weighting::Weighting;
+use crate::estimator::{emitted, estimate_delta_light};
+use crate::phase::LightEstimate;
+use crate::sampling::{LightSampling, PhaseBuffers};
+use crate::shading_point::ShadingPoint;
 use lumis_core::accel::PACKET_SIZE;
 use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::IntegratorPlugin;
 use lumis_core::scene::Scene;
+use lumis_core::scene::description::PluginSpec;
 
 /// Name of the parameter N, samples per light per camera sample.
 pub const SAMPLES: &str = "samples";
@@ -43,40 +47,46 @@ pub const AOVS_SPEC: ParamSpec = ParamSpec {
     description: "extra output layers: alpha (per light, combined, and coloured), sampling_variance (V[L_1] per pixel, summed over lights), samples (BSDF and light sample counts)",
 };
 
-/// A member of the MIS family: an allocation and a weighting, both known at compile time, so
-/// that a plugin's whole per-sample path is compiled for them (no dynamic call per sample, nor
-/// per phase).
-pub struct MisIntegrator<A, W> {
-    /// N, samples per light per camera sample.
-    samples: u32,
-    allocation: A,
-    weighting: W,
+/// Reads `samples`, N, which a plugin gives its allocation.
+pub fn read_samples(params: &mut Params) -> Result<u32, PluginError> {
+    Ok(params.int(SAMPLES)? as u32)
+}
+
+/// Whether `plugin` is given N, as the members of the family are (through `samples`).
+pub fn takes_samples(plugin: &IntegratorPlugin) -> bool {
+    plugin.params.iter().any(|p| p.name == SAMPLES)
+}
+
+/// Sets N = `samples` in the description of an integrator that [`takes_samples`]: how a
+/// program (the study) gives a member of the family its budget.
+pub fn set_samples(spec: &mut PluginSpec, samples: u32) {
+    let value = ron::Value::Number(u64::from(samples).into());
+    spec.params.insert(SAMPLES.into(), value);
+}
+
+/// A member of the MIS family: a method known at compile time, so that a plugin's whole
+/// per-sample path is compiled for it (no dynamic call per sample, nor per phase).
+pub struct MisIntegrator<M> {
+    method: M,
     aovs: AovRequest,
 }
 
-impl<A: Allocation + 'static, W: Weighting + 'static> MisIntegrator<A, W> {
-    /// Reads the family's parameters (`samples`, `aovs`) and combines `allocation` and
-    /// `weighting`.
-    pub fn new(params: &mut Params, allocation: A, weighting: W) -> Result<Self, PluginError> {
+impl<M: Method + 'static> MisIntegrator<M> {
+    /// Reads the family's `aovs` and runs `method` (which was given N, `samples`).
+    pub fn new(params: &mut Params, method: M) -> Result<Self, PluginError> {
         Ok(MisIntegrator {
-            samples: params.int(SAMPLES)? as u32,
             aovs: AovRequest::from_names(&params.list(AOVS)?),
-            allocation,
-            weighting,
+            method,
         })
     }
 
     /// As [`new`](Self::new), boxed as a plugin's `create` returns it.
-    pub fn boxed(
-        params: &mut Params,
-        allocation: A,
-        weighting: W,
-    ) -> Result<Box<dyn Integrator>, PluginError> {
-        Ok(Box::new(Self::new(params, allocation, weighting)?))
+    pub fn boxed(params: &mut Params, method: M) -> Result<Box<dyn Integrator>, PluginError> {
+        Ok(Box::new(Self::new(params, method)?))
     }
 }
 
-impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
+impl<M: Method> Integrator for MisIntegrator<M> {
     fn aovs(&self, scene: &Scene) -> Vec<Aov> {
         self.aovs.declare(scene)
     }
@@ -86,8 +96,7 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
     }
 
     fn preprocess(&mut self, scene: &Scene) {
-        self.allocation.preprocess(scene);
-        self.weighting.preprocess(scene);
+        self.method.preprocess(scene);
     }
 
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
@@ -110,7 +119,6 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
                     &sp,
                     light,
                     sample.pixel,
-                    self.samples,
                     &mut sample.sampler,
                     buffers,
                 )
@@ -118,7 +126,7 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
                 if self.aovs.any() {
                     sampling = sampling.with_tally(&mut tally);
                 }
-                let estimate = self.allocation.estimate(&mut sampling, &self.weighting);
+                let estimate = self.method.estimate(&mut sampling);
                 radiance += estimate.value;
                 if self.aovs.any() {
                     self.aovs.add(sums, light, &estimate, &tally);
@@ -129,7 +137,7 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
     }
 
     /// Each light's phases for the packet's samples drawn together
-    /// ([`Allocation::estimate_together`]), when there are several samples and no AOV asks for
+    /// ([`Method::estimate_together`]), when there are several samples and no AOV asks for
     /// statistics (their sums would be added in another order); one by one otherwise.
     fn shade_together(
         &self,
@@ -180,15 +188,14 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
                             sp,
                             light,
                             sample.pixel,
-                            self.samples,
                             &mut sample.sampler,
                             buffers,
                         );
                         Some(sampling.with_camera_sample(sample.index))
                     });
                 let mut estimates = [LightEstimate::default(); PACKET_SIZE];
-                self.allocation
-                    .estimate_together(&mut samplings, &self.weighting, &mut estimates);
+                self.method
+                    .estimate_together(&mut samplings, &mut estimates);
                 let estimated = samplings.iter().zip(&estimates).zip(radiance.iter_mut());
                 for ((sampling, estimate), radiance) in estimated {
                     if sampling.is_some() {
@@ -201,5 +208,26 @@ impl<A: Allocation, W: Weighting> Integrator for MisIntegrator<A, W> {
 
     fn resolve(&self, scene: &Scene, sums: &[f64], _samples: u32, aovs: &mut [f32]) {
         self.aovs.resolve(scene, sums, aovs);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lumis_core::registry::find;
+
+    /// N set in a description reaches the plugin's `create` as its `samples`.
+    #[test]
+    fn set_samples_gives_a_plugin_its_n() {
+        // By its name: the plugins import this module, not the reverse.
+        let plugin = find::<IntegratorPlugin>("balance").expect("balance");
+        assert!(takes_samples(plugin));
+        let mut spec = PluginSpec {
+            kind: "balance".into(),
+            params: Default::default(),
+        };
+        set_samples(&mut spec, 7);
+        let mut params = Params::new("balance", plugin.params, spec.params).expect("params");
+        assert_eq!(read_samples(&mut params).expect("samples"), 7);
     }
 }

@@ -13,7 +13,7 @@
 //! the paper's second-order α̂ in the limit M → ∞ (exact I₁, I₂), and pilots of M samples drawn
 //! by the BSDF's own `sample` and by cone sampling, as the integrators' records
 //! ([`SampleRecord`]), to run any α estimator on ([`crate::moments::PilotSamples`],
-//! [`crate::alpha::SecondOrderMoments`]). Tests use it to check where estimators of α land
+//! [`crate::second_order::SecondOrderMoments`]). Tests use it to check where estimators of α land
 //! (`tests/one_point.rs`).
 
 use crate::estimator::SampleRecord;

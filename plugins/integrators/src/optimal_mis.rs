@@ -30,12 +30,14 @@
 //! estimate is negative or not finite (both vanish as N grows, so the direct estimator stays
 //! consistent). Delta lights take one light sample each.
 
-use crate::allocation::{Allocation, FixedAlpha, LightEstimate, LightSampling, SampleSplit};
-use crate::balance::Balance;
+use crate::allocation::{Method, Weighted};
+use crate::alpha_family::{self, at_most_samples};
 use crate::estimator::SampleRecord;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
-use crate::phase::{Phase, PhaseRole};
-use crate::weighting::{PerSample, Weighting};
+use crate::fixed_alpha::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
+use crate::phase::{LightEstimate, Phase, PhaseRole, SampleSplit};
+use crate::sampling::LightSampling;
+use crate::weighting::{Balance, PerSample, Weighting};
 use glam::DVec3;
 use lumis_core::integrator::Integrator;
 use lumis_core::math::Rgb;
@@ -49,7 +51,7 @@ pub const MODE: &str = "mode";
 pub const DIRECT: &str = "direct";
 pub const PROGRESSIVE: &str = "progressive";
 /// Parameter: M, the first phase's samples in progressive mode.
-pub const ALPHA_SAMPLES: &str = crate::alpha::ALPHA_SAMPLES;
+pub const ALPHA_SAMPLES: &str = alpha_family::ALPHA_SAMPLES;
 /// Â is treated as singular below this determinant relative to Â_BB Â_LL.
 const CONDITION: f64 = 1e-6;
 
@@ -259,18 +261,18 @@ impl Weighting for ClippedOptimal {
 }
 
 /// The progressive mode: M samples at ½ (balance, setting up Â), then N − M at ½ weighed by
-/// [`ClippedOptimal`] with the first phase's coefficients (balance if Â was ill-conditioned).
+/// [`ClippedOptimal`] with the first phase's coefficients (balance if Â was ill-conditioned):
+/// its own weights, so a [`Method`], given no weighting.
 pub struct Progressive {
+    /// N, samples per light per camera sample.
+    pub samples: u32,
+    /// M, the first phase's samples.
     pub first: u32,
 }
 
-impl Allocation for Progressive {
-    fn estimate<W: Weighting + ?Sized>(
-        &self,
-        sampling: &mut LightSampling,
-        _weighting: &W,
-    ) -> LightEstimate {
-        let n = sampling.samples();
+impl Method for Progressive {
+    fn estimate(&self, sampling: &mut LightSampling) -> LightEstimate {
+        let n = self.samples;
         let m = self.first.min(n);
         let rest = n - m;
         let first_role = PhaseRole {
@@ -283,7 +285,7 @@ impl Allocation for Progressive {
             &WithBothDensities(PerSample(Balance)),
             &mut (),
         );
-        let alpha = SampleSplit::new(0.5, n).n_bsdf as f64 / n as f64;
+        let alpha = SampleSplit::new(0.5, n).alpha();
         if rest == 0 {
             return LightEstimate {
                 value: first,
@@ -310,20 +312,18 @@ impl Allocation for Progressive {
 }
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let n = params.int(SAMPLES_SPEC.name)? as u32;
+    let samples = read_samples(params)?;
     let given = params.int(ALPHA_SAMPLES)? as u32;
     if params.choice(MODE)? == DIRECT {
-        return MisIntegrator::boxed(params, FixedAlpha { alpha: 0.5 }, DirectOptimal);
+        let allocation = FixedAlpha {
+            alpha: 0.5,
+            samples,
+        };
+        return MisIntegrator::boxed(params, Weighted(allocation, DirectOptimal));
     }
-    let first = if given == 0 { n / 2 } else { given };
-    if first > n {
-        return Err(PluginError::Invalid(format!(
-            "{}: `{ALPHA_SAMPLES}` ({first}) cannot exceed `{}` ({n})",
-            params.plugin(),
-            SAMPLES_SPEC.name
-        )));
-    }
-    MisIntegrator::boxed(params, Progressive { first }, PerSample(Balance))
+    let first = if given == 0 { samples / 2 } else { given };
+    let first = at_most_samples(params, ALPHA_SAMPLES, first, samples, "")?;
+    MisIntegrator::boxed(params, Progressive { samples, first })
 }
 
 inventory::submit! {

@@ -11,11 +11,11 @@
 //! sample 0, which shades the same point, adds it to its own estimate (weighted by sample
 //! counts, as the integrated α), so the pilot's samples are not wasted.
 
-use crate::allocation::{LightSampling, PhaseBuffers, SampleSplit};
-use crate::balance::Balance;
-use crate::estimator::{Densities, ShadingPoint, draw_bsdf_samples, draw_light_samples};
-use crate::phase::{Phase, PhaseRole};
-use crate::weighting::PerSample;
+use crate::estimator::{Densities, draw_bsdf_samples, draw_light_samples};
+use crate::phase::{Phase, PhaseRole, SampleSplit};
+use crate::sampling::{LightSampling, PhaseBuffers};
+use crate::shading_point::ShadingPoint;
+use crate::weighting::{Balance, PerSample};
 use glam::{UVec2, Vec3};
 use lumis_core::integrator::CameraSample;
 use lumis_core::math::Rgb;
@@ -78,15 +78,33 @@ impl PilotEstimates {
         self.values.get(i).map(|v| (*v, self.samples))
     }
 
-    /// Combines the estimate of the samples `sampling` drew (`value`, from `samples` samples)
-    /// with the pilot's of the same point (camera sample 0), weighted by sample counts: (M·L̂_pilot
-    /// + n·L̂)/(M + n). Unbiased whenever whatever steered `value` came from the pilot only.
-    pub fn combine(&self, sampling: &LightSampling, value: Rgb, samples: u32) -> Rgb {
-        if sampling.camera_sample() != 0 {
-            return value;
-        }
-        match self.get(sampling.pixel(), sampling.light()) {
-            Some((pilot, m)) => (pilot * m as f32 + value * samples as f32) / (m + samples) as f32,
+    /// The estimate of N = `samples` samples of `sampling`'s light, `draw(sampling, n)`
+    /// drawing n of them (n > 0). At camera sample 0, which shades the point the pilot shaded,
+    /// the pilot's M samples are N's first M: `draw` draws N − M, and the estimate is
+    /// (M·L̂_pilot + (N − M)·L̂)/N; elsewhere `draw` draws N. Unbiased whenever whatever steers
+    /// `draw` came from the pilot only. (M ≤ N: [`crate::alpha_family::read_pilot_samples`].)
+    pub fn reuse_at_camera_sample_zero(
+        &self,
+        sampling: &mut LightSampling,
+        samples: u32,
+        draw: impl FnOnce(&mut LightSampling, u32) -> Rgb,
+    ) -> Rgb {
+        let pilot = if sampling.camera_sample() == 0 {
+            self.get(sampling.pixel(), sampling.light())
+        } else {
+            None
+        };
+        let fresh = match pilot {
+            Some((_, m)) => samples - m.min(samples),
+            None => samples,
+        };
+        let value = if fresh > 0 {
+            draw(sampling, fresh)
+        } else {
+            Rgb::ZERO
+        };
+        match pilot {
+            Some((pilot, m)) => (pilot * m as f32 + value * fresh as f32) / (m + fresh) as f32,
             None => value,
         }
     }
@@ -163,7 +181,7 @@ fn pilot_pixel<T>(
                 continue;
             }
             let mut sampling =
-                LightSampling::new(scene, &point, light, pixel, samples, &mut sampler, buffers);
+                LightSampling::new(scene, &point, light, pixel, &mut sampler, buffers);
             let split = SampleSplit::new(0.5, samples);
             estimates[light] =
                 sampling.phase(split, PhaseRole::PILOT, &PerSample(Balance), &mut ());

@@ -26,16 +26,15 @@
 //! "second_order"), plus 12 for its estimate, during `preprocess`; then 4 + 12 per pixel and
 //! light.
 
-use crate::allocation::{Allocation, LightEstimate, LightSampling, SampleSplit};
-use crate::alpha::{SecondOrderMoments, second_order_alpha};
-use crate::balance::Balance;
-use crate::exact_alpha::{CLAMP_SPEC, read_clamp};
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::allocation::{Allocation, Weighted};
+use crate::alpha_family::{CLAMP_SPEC, pilot_samples_spec, read_clamp, read_pilot_samples};
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
-use crate::phase::{Observer, PhaseRole};
+use crate::phase::{LightEstimate, Observer, PhaseRole, SampleSplit};
 use crate::pilot::{self, PilotEstimates, Surface};
-use crate::variance_aware::{pilot_samples_spec, read_pilot_samples};
-use crate::weighting::{PerSample, Weighting};
+use crate::sampling::LightSampling;
+use crate::second_order::{SecondOrderMoments, second_order_alpha};
+use crate::weighting::{Balance, PerSample, Weighting};
 use glam::UVec2;
 use lumis_core::integrator::Integrator;
 use lumis_core::output::Window;
@@ -210,6 +209,8 @@ fn pool(
 
 /// The allocation: N samples at the pooled α, camera sample 0 reusing the pilot.
 pub struct PooledAlpha {
+    /// N, samples per light per camera sample.
+    pub samples: u32,
     pub pilot_samples: u32,
     pub radius: u32,
     pub pooled: Pooled,
@@ -224,29 +225,20 @@ impl Allocation for PooledAlpha {
         sampling: &mut LightSampling,
         weighting: &W,
     ) -> LightEstimate {
-        let n = sampling.samples();
-        let (pixel, light) = (sampling.pixel(), sampling.light());
         let alpha = self
             .alphas
-            .get(pixel, light)
+            .get(sampling.pixel(), sampling.light())
             .unwrap_or(0.5)
             .clamp(self.clamp[0], self.clamp[1]);
-        let reused = sampling.camera_sample() == 0 && self.estimates.get(pixel, light).is_some();
-        let fresh = if reused {
-            n - self.pilot_samples.min(n)
-        } else {
-            n
-        };
-        let value = if fresh > 0 {
-            let split = SampleSplit::new(alpha, fresh);
-            sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ())
-        } else {
-            lumis_core::math::Rgb::ZERO
-        };
-        LightEstimate {
-            value: self.estimates.combine(sampling, value, fresh),
-            alpha,
-        }
+        let value = self.estimates.reuse_at_camera_sample_zero(
+            sampling,
+            self.samples,
+            |sampling, fresh| {
+                let split = SampleSplit::new(alpha, fresh);
+                sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ())
+            },
+        );
+        LightEstimate { value, alpha }
     }
 
     fn preprocess(&mut self, scene: &Scene) {
@@ -282,7 +274,8 @@ impl Allocation for PooledAlpha {
 }
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let pilot_samples = read_pilot_samples(params, 8)?;
+    let samples = read_samples(params)?;
+    let pilot_samples = read_pilot_samples(params, 8, samples)?;
     let radius = params.int(RADIUS)? as u32;
     let pooled = match params.choice(OBJECTIVE)? {
         EXACT => Pooled::Nodes(Objective::Mixture),
@@ -291,6 +284,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     };
     let clamp = read_clamp(params)?;
     let allocation = PooledAlpha {
+        samples,
         pilot_samples,
         radius,
         pooled,
@@ -298,7 +292,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         alphas: AlphaMap::default(),
         estimates: PilotEstimates::default(),
     };
-    MisIntegrator::boxed(params, allocation, PerSample(Balance))
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 
 inventory::submit! {

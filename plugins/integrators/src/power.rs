@@ -7,8 +7,9 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (see
 //!   docs/integrators.md).
 
-use crate::allocation::FixedAlpha;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
+use crate::allocation::Weighted;
+use crate::fixed_alpha::FixedAlpha;
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::weighting::{Heuristic, PerSample};
 use glam::Vec4;
 use lumis_core::integrator::Integrator;
@@ -20,7 +21,7 @@ pub const NAME: &str = "power";
 
 /// w_i = (n_i p_i)² / Σ_k (n_k p_k)², with the ratio r = other / mine as for [`Balance`].
 ///
-/// [`Balance`]: crate::balance::Balance
+/// [`Balance`]: crate::weighting::Balance
 pub struct Power;
 
 impl Heuristic for Power {
@@ -40,7 +41,12 @@ impl Heuristic for Power {
 static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    MisIntegrator::boxed(params, FixedAlpha { alpha: 0.5 }, PerSample(Power))
+    let samples = read_samples(params)?;
+    let allocation = FixedAlpha {
+        alpha: 0.5,
+        samples,
+    };
+    MisIntegrator::boxed(params, Weighted(allocation, PerSample(Power)))
 }
 
 inventory::submit! {
@@ -54,8 +60,16 @@ inventory::submit! {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use crate::weighting::{assert_partition_of_unity, assert_small_phases_weigh_as_the_lanes_do};
+
     #[test]
     fn weights_are_a_partition_of_unity() {
-        crate::weighting::assert_partition_of_unity(&super::Power);
+        assert_partition_of_unity(&Power);
+    }
+
+    #[test]
+    fn small_phases_weigh_as_the_lanes_do() {
+        assert_small_phases_weigh_as_the_lanes_do(&Power);
     }
 }

@@ -26,12 +26,14 @@
 //!   factors are pooled over.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 
-use crate::allocation::{Allocation, LightEstimate, LightSampling, SampleSplit};
-use crate::balance::Balance;
-use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
-use crate::phase::{Phase, PhaseRole};
+use crate::allocation::Method;
+use crate::alpha_family::{self, pilot_samples_spec, read_pilot_samples};
+use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
+use crate::phase::{LightEstimate, Phase, PhaseRole, SampleSplit};
 use crate::pilot::{self, PilotEstimates};
-use crate::weighting::{PerSample, Weighting};
+use crate::sampling::LightSampling;
+use crate::weighting::{Balance, PerSample, Weighting};
+use bytemuck::{Pod, Zeroable};
 use glam::UVec2;
 use lumis_core::integrator::Integrator;
 use lumis_core::math::{Rgb, luminance};
@@ -43,23 +45,9 @@ use lumis_core::scene::Scene;
 /// The plugin's name in scene files.
 pub const NAME: &str = "variance_aware";
 /// Parameter: M, the pilot's samples per light per pixel.
-pub const PILOT_SAMPLES: &str = "pilot_samples";
+pub const PILOT_SAMPLES: &str = alpha_family::PILOT_SAMPLES;
 /// Parameter: edge of the blocks the factors are pooled over, in pixels.
 pub const BLOCK: &str = "block";
-
-/// `pilot_samples`, shared with `pooled_alpha`.
-pub const fn pilot_samples_spec(default_text: &'static str) -> ParamSpec {
-    ParamSpec {
-        name: PILOT_SAMPLES,
-        kind: ParamKind::Int {
-            default: Some(0),
-            min: 0,
-            max: 1 << 20,
-        },
-        unit: "",
-        description: default_text,
-    }
-}
 
 static PARAMS: &[ParamSpec] = &[
     SAMPLES_SPEC,
@@ -79,25 +67,6 @@ static PARAMS: &[ParamSpec] = &[
     AOVS_SPEC,
 ];
 
-/// Reads `pilot_samples` (0: N / `fraction`, at least 2; at most N).
-pub fn read_pilot_samples(params: &mut Params, fraction: u32) -> Result<u32, PluginError> {
-    let n = params.int(SAMPLES_SPEC.name)? as u32;
-    let given = params.int(PILOT_SAMPLES)? as u32;
-    let m = if given == 0 {
-        (n / fraction).max(2).min(n)
-    } else {
-        given
-    };
-    if m > n {
-        return Err(PluginError::Invalid(format!(
-            "{}: `{PILOT_SAMPLES}` ({m}) cannot exceed `{}` ({n}): camera sample 0's estimate is made of the pilot's M samples and N − M fresh ones",
-            params.plugin(),
-            SAMPLES_SPEC.name
-        )));
-    }
-    Ok(m)
-}
-
 /// The balance heuristic with each technique's n·p scaled by its factor (c_B, c_L).
 pub struct ScaledBalance(pub [f32; 2]);
 
@@ -107,8 +76,36 @@ impl Weighting for ScaledBalance {
     }
 }
 
-/// Per pilot pixel and light: Σ F, Σ F², n for the BSDF technique, then for the light's.
-const PER_LIGHT: usize = 6;
+/// What a pilot pixel keeps of one technique's samples of one light, F = f / p_t its
+/// one-sample estimates.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct TechniqueSums {
+    /// Σ F.
+    sum: f64,
+    /// Σ F².
+    sum_sq: f64,
+    /// The number of samples.
+    count: f64,
+}
+
+/// What a block pools of one technique's pilot sums over its pixels.
+#[derive(Clone, Copy, Debug, Default)]
+struct BlockSums {
+    /// Σ F, Σ F² and the number of samples.
+    sum: f64,
+    sum_sq: f64,
+    count: f64,
+    /// Σ over pixels of the squared deviations from the pixel's mean, Σ (F − F̄_pixel)².
+    deviations: f64,
+    /// Σ over pixels of n − 1: the degrees of freedom of `deviations`.
+    degrees: f64,
+}
+
+/// The techniques (BSDF, then light) of one light at one pilot pixel.
+type PixelSums = [TechniqueSums; 2];
+/// f64 values per pilot pixel and light.
+const PER_LIGHT: usize = size_of::<PixelSums>() / size_of::<f64>();
 
 /// The factors (c_B, c_L) per block of the window and light.
 #[derive(Clone, Debug, Default)]
@@ -154,30 +151,33 @@ fn block_factors(scene: &Scene, stats: &[f64], block: u32) -> BlockFactors {
     for by in 0..blocks_y {
         for bx in 0..blocks_x {
             for light in 0..lights {
-                // Per technique: Σ F, Σ F², count, Σ within-pixel squared deviations, Σ (n − 1).
-                let mut t = [[0.0f64; 5]; 2];
+                let mut pooled = [BlockSums::default(); 2];
                 for y in by * block..((by + 1) * block).min(window.height) {
                     for x in bx * block..((bx + 1) * block).min(window.width) {
                         let p = (y * window.width + x) as usize;
-                        let s = &stats[(p * lights + light) * PER_LIGHT..][..PER_LIGHT];
-                        for (k, acc) in t.iter_mut().enumerate() {
-                            let (sum, sum_sq, n) = (s[3 * k], s[3 * k + 1], s[3 * k + 2]);
-                            if n < 1.0 {
+                        let s: &PixelSums = bytemuck::from_bytes(bytemuck::cast_slice(
+                            &stats[(p * lights + light) * PER_LIGHT..][..PER_LIGHT],
+                        ));
+                        for (pooled, s) in pooled.iter_mut().zip(s) {
+                            if s.count < 1.0 {
                                 continue;
                             }
-                            acc[0] += sum;
-                            acc[1] += sum_sq;
-                            acc[2] += n;
-                            acc[3] += (sum_sq - sum * sum / n).max(0.0);
-                            acc[4] += n - 1.0;
+                            pooled.sum += s.sum;
+                            pooled.sum_sq += s.sum_sq;
+                            pooled.count += s.count;
+                            pooled.deviations += (s.sum_sq - s.sum * s.sum / s.count).max(0.0);
+                            pooled.degrees += s.count - 1.0;
                         }
                     }
                 }
-                let c = t.map(|acc| {
-                    if acc[2] == 0.0 || acc[4] == 0.0 {
+                let c = pooled.map(|pooled| {
+                    if pooled.count == 0.0 || pooled.degrees == 0.0 {
                         return 1.0;
                     }
-                    moment_factor(acc[0] / acc[2], acc[3] / acc[4])
+                    moment_factor(
+                        pooled.sum / pooled.count,
+                        pooled.deviations / pooled.degrees,
+                    )
                 });
                 factors[(by * blocks_x + bx) as usize * lights + light] = c;
             }
@@ -192,48 +192,40 @@ fn block_factors(scene: &Scene, stats: &[f64], block: u32) -> BlockFactors {
     }
 }
 
-/// The allocation: N/2 per technique, weighed by [`ScaledBalance`] with the block's factors,
-/// camera sample 0 reusing the pilot.
+/// The method: N/2 samples per technique, weighed by [`ScaledBalance`] with the block's
+/// factors (its own weights: a [`Method`], given no weighting), camera sample 0 reusing the
+/// pilot.
 pub struct VarianceAware {
+    /// N, samples per light per camera sample.
+    pub samples: u32,
     pub pilot_samples: u32,
     pub block: u32,
     pub factors: BlockFactors,
     pub estimates: PilotEstimates,
 }
 
-impl Allocation for VarianceAware {
-    fn estimate<W: Weighting + ?Sized>(
-        &self,
-        sampling: &mut LightSampling,
-        _weighting: &W,
-    ) -> LightEstimate {
-        let n = sampling.samples();
-        let reused = sampling.camera_sample() == 0
-            && self
-                .estimates
-                .get(sampling.pixel(), sampling.light())
-                .is_some();
-        let fresh = if reused {
-            n - self.pilot_samples.min(n)
-        } else {
-            n
-        };
+impl Method for VarianceAware {
+    fn estimate(&self, sampling: &mut LightSampling) -> LightEstimate {
         let factors = self.factors.get(sampling.pixel(), sampling.light());
-        let split = SampleSplit::new(0.5, fresh);
-        let value = if fresh > 0 {
-            sampling.phase(split, PhaseRole::ESTIMATE, &ScaledBalance(factors), &mut ())
-        } else {
-            Rgb::ZERO
-        };
+        let value = self.estimates.reuse_at_camera_sample_zero(
+            sampling,
+            self.samples,
+            |sampling, fresh| {
+                let split = SampleSplit::new(0.5, fresh);
+                sampling.phase(split, PhaseRole::ESTIMATE, &ScaledBalance(factors), &mut ())
+            },
+        );
         LightEstimate {
-            value: self.estimates.combine(sampling, value, fresh),
-            alpha: SampleSplit::new(0.5, n).n_bsdf as f64 / n as f64,
+            value,
+            alpha: SampleSplit::new(0.5, self.samples).alpha(),
         }
     }
 
     fn preprocess(&mut self, scene: &Scene) {
         let (_, stats, estimates) =
             pilot::run::<f64>(scene, self.pilot_samples, PER_LIGHT, |_, phase, out| {
+                let techniques: &mut PixelSums =
+                    bytemuck::from_bytes_mut(bytemuck::cast_slice_mut(out));
                 for (i, r) in phase.records.iter().enumerate() {
                     let bsdf = i < phase.split.n_bsdf as usize;
                     // F_t = f / p_t of the technique that drew the sample (a Dirac sample's f
@@ -247,10 +239,10 @@ impl Allocation for VarianceAware {
                     } else {
                         f / own as f64
                     };
-                    let k = if bsdf { 0 } else { 3 };
-                    out[k] += value;
-                    out[k + 1] += value * value;
-                    out[k + 2] += 1.0;
+                    let sums = &mut techniques[if bsdf { 0 } else { 1 }];
+                    sums.sum += value;
+                    sums.sum_sq += value * value;
+                    sums.count += 1.0;
                 }
             });
         self.factors = block_factors(scene, &stats, self.block);
@@ -259,15 +251,17 @@ impl Allocation for VarianceAware {
 }
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let pilot_samples = read_pilot_samples(params, 4)?;
+    let samples = read_samples(params)?;
+    let pilot_samples = read_pilot_samples(params, 4, samples)?;
     let block = params.int(BLOCK)? as u32;
-    let allocation = VarianceAware {
+    let method = VarianceAware {
+        samples,
         pilot_samples,
         block,
         factors: BlockFactors::default(),
         estimates: PilotEstimates::default(),
     };
-    MisIntegrator::boxed(params, allocation, PerSample(Balance))
+    MisIntegrator::boxed(params, method)
 }
 
 inventory::submit! {

@@ -11,9 +11,9 @@
 //! linear system over the batch) fit as well as per-sample [`Heuristic`]s, which [`PerSample`]
 //! turns into a weighting.
 
-use crate::allocation::SampleSplit;
-use crate::phase::Phase;
-use glam::Vec4;
+use crate::estimator::SampleRecord;
+use crate::phase::{Phase, PhaseRole, SampleSplit};
+use glam::{UVec2, Vec4};
 use lumis_core::math::Rgb;
 use lumis_core::scene::Scene;
 
@@ -55,6 +55,23 @@ pub trait Heuristic: Send + Sync {
             self.weight(mine.z, other.z),
             self.weight(mine.w, other.w),
         )
+    }
+}
+
+/// The balance heuristic, w_i = n_i p_i / Σ_k n_k p_k, written with the ratio r = other / mine
+/// so that huge or tiny products neither overflow nor divide 0 by 0: the `balance` plugin's
+/// weights, and those of every method that weighs its pilots or phases with it.
+pub struct Balance;
+
+impl Heuristic for Balance {
+    #[inline]
+    fn weight(&self, mine: f32, other: f32) -> f32 {
+        1.0 / (1.0 + other / mine)
+    }
+
+    #[inline]
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        Vec4::ONE / (Vec4::ONE + other / mine)
     }
 }
 
@@ -201,10 +218,13 @@ impl<H: Heuristic> Weighting for PerSample<H> {
     }
 }
 
-/// Checks for heuristics' unit tests: weights in [0, 1] that sum to one over the two
-/// techniques, for ordinary, equal, zero, infinite and extreme products.
-#[cfg(test)]
-pub(crate) fn assert_partition_of_unity(h: &dyn Heuristic) {
+// Checks for the tests of a heuristic, public so that one written outside this crate is tested
+// as the built-in ones are.
+
+/// Asserts that `h`'s weights are in [0, 1] and sum to one over the two techniques, for
+/// ordinary, equal, zero, infinite and extreme products, and that `weight4`'s lanes are
+/// `weight` bit for bit.
+pub fn assert_partition_of_unity(h: &dyn Heuristic) {
     let values = [
         0.0f32,
         1e-30,
@@ -238,140 +258,74 @@ pub(crate) fn assert_partition_of_unity(h: &dyn Heuristic) {
     }
 }
 
+/// Asserts that phases of at most `SCALAR_RECORDS` records, which are weighed record by record
+/// (`weigh_each`), get bit for bit what the lanes (`weigh_in_lanes`) give the same phase, each
+/// contribution and the estimate, with `h`'s weights, with and without factors, for lit, black
+/// and Dirac records, equal, zero and infinite products.
+pub fn assert_small_phases_weigh_as_the_lanes_do(h: &dyn Heuristic) {
+    let densities = [0.0f32, 1e-30, 0.37, 1.0, 2.5, 1e30, f32::INFINITY];
+    let splits = [(1, 1), (2, 0), (0, 2), (1, 0), (0, 1)];
+    let bits =
+        |v: &[Rgb]| -> Vec<[u32; 3]> { v.iter().map(|c| c.to_array().map(f32::to_bits)).collect() };
+    let mut checked = 0;
+    for factors in [[1.0f32, 1.0], [0.3, 1.7]] {
+        let weighting = PerSample(DynHeuristic(h));
+        for (n_bsdf, n_light) in splits {
+            let split = SampleSplit { n_bsdf, n_light };
+            let products = Products::of(split, factors);
+            for (&p, &q, kind) in densities.iter().flat_map(|p| {
+                densities
+                    .iter()
+                    .flat_map(move |q| (0..3).map(move |k| (p, q, k)))
+            }) {
+                let record = |i: usize| SampleRecord {
+                    f: if kind == 1 && i == 0 {
+                        Rgb::ZERO
+                    } else {
+                        Rgb::new(0.25, 0.5 + i as f32, 3.0)
+                    },
+                    p_bsdf: if i == 0 { p } else { q },
+                    p_light: if i == 0 { q } else { p },
+                    delta: kind == 2 && i == 0 && n_bsdf > 0,
+                };
+                let records: Vec<_> = (0..split.total() as usize).map(record).collect();
+                let phase = Phase {
+                    pixel: UVec2::ZERO,
+                    light: 0,
+                    split,
+                    role: PhaseRole::ESTIMATE,
+                    records: &records,
+                };
+                let mut each = vec![Rgb::ZERO; records.len()];
+                let mut lanes = each.clone();
+                let value_each = weighting.weigh_each(&phase, &mut each, products);
+                let value_lanes = weighting.weigh_in_lanes(&phase, &mut lanes, products);
+                let case = format!("{records:?}, {split:?}, factors {factors:?}");
+                assert_eq!(bits(&each), bits(&lanes), "{case}");
+                assert_eq!(bits(&[value_each]), bits(&[value_lanes]), "{case}");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 2 * 5 * 7 * 7 * 3);
+}
+
+/// A heuristic behind a reference, as `PerSample` takes it by value.
+struct DynHeuristic<'a>(&'a dyn Heuristic);
+
+impl Heuristic for DynHeuristic<'_> {
+    fn weight(&self, mine: f32, other: f32) -> f32 {
+        self.0.weight(mine, other)
+    }
+
+    fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
+        self.0.weight4(mine, other)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::allocation::SampleSplit;
-    use crate::balance::Balance;
-    use crate::estimator::SampleRecord;
-    use lumis_core::sampler::Sampler;
-
-    /// Random records of both techniques, some black, one Dirac (a BSDF sample).
-    fn records(split: SampleSplit) -> Vec<SampleRecord> {
-        let mut s = Sampler::new(3, 4, 5);
-        let mut v: Vec<SampleRecord> = (0..split.total())
-            .map(|i| SampleRecord {
-                f: if i % 5 == 0 {
-                    Rgb::ZERO
-                } else {
-                    Rgb::new(s.next_1d(), s.next_1d(), s.next_1d())
-                },
-                p_bsdf: 0.1 + 3.0 * s.next_1d(),
-                // Some BSDF samples in directions the light cannot produce.
-                p_light: if i < split.n_bsdf && i % 7 == 0 {
-                    0.0
-                } else {
-                    0.1 + 3.0 * s.next_1d()
-                },
-                delta: false,
-            })
-            .collect();
-        v[1].delta = true;
-        v[1].p_light = 0.0;
-        v
-    }
-
-    /// The balance heuristic is the mixture (defensive) estimator Σ f / (n_B p_B + n_L p_L)
-    /// over all samples (a Dirac sample contributing f / n_B), computed here independently.
-    #[test]
-    fn balance_is_the_mixture_estimator() {
-        for split in [
-            SampleSplit::new(0.5, 16),
-            SampleSplit::new(0.2, 11),
-            SampleSplit::new(0.9, 13),
-        ] {
-            let records = records(split);
-            let phase = Phase::of(split, &records);
-            let mut contributions = vec![Rgb::ZERO; records.len()];
-            let value = PerSample(Balance).weigh(&phase, &mut contributions);
-            let (n_b, n_l) = (split.n_bsdf as f64, split.n_light as f64);
-            let mut expected = glam::DVec3::ZERO;
-            for r in &records {
-                if r.delta {
-                    expected += r.f.as_dvec3() / n_b;
-                } else if !r.is_black() {
-                    let mix = n_b * r.p_bsdf as f64 + n_l * r.p_light as f64;
-                    expected += r.f.as_dvec3() / mix;
-                }
-            }
-            let sum: Rgb = contributions.iter().copied().sum();
-            assert!(
-                (value.as_dvec3() - expected).abs().max_element() < 1e-5 * expected.max_element(),
-                "{split:?}: {value} vs {expected}"
-            );
-            assert_eq!(sum, value, "contributions add up to the estimate");
-        }
-    }
-
-    /// Phases of at most `SCALAR_RECORDS` records are weighed record by record
-    /// (`weigh_each`): each contribution and the estimate must be bit for bit what the lanes
-    /// (`weigh_in_lanes`) give the same phase, for every built-in heuristic, with and without
-    /// factors, for lit, black and Dirac records, equal, zero and infinite products.
-    #[test]
-    fn small_phases_weigh_as_the_lanes_do() {
-        let heuristics: [&dyn Heuristic; 4] = [
-            &Balance,
-            &crate::power::Power,
-            &crate::max::Maximum,
-            &crate::cutoff::Cutoff { threshold: 0.1 },
-        ];
-        let densities = [0.0f32, 1e-30, 0.37, 1.0, 2.5, 1e30, f32::INFINITY];
-        let splits = [(1, 1), (2, 0), (0, 2), (1, 0), (0, 1)];
-        let bits = |v: &[Rgb]| -> Vec<[u32; 3]> {
-            v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
-        };
-        let mut checked = 0;
-        for (h, factors) in heuristics
-            .into_iter()
-            .flat_map(|h| [[1.0f32, 1.0], [0.3, 1.7]].map(|f| (h, f)))
-        {
-            let weighting = PerSample(DynHeuristic(h));
-            for (n_bsdf, n_light) in splits {
-                let split = SampleSplit { n_bsdf, n_light };
-                let products = Products::of(split, factors);
-                for (&p, &q, kind) in densities.iter().flat_map(|p| {
-                    densities
-                        .iter()
-                        .flat_map(move |q| (0..3).map(move |k| (p, q, k)))
-                }) {
-                    let record = |i: usize| SampleRecord {
-                        f: if kind == 1 && i == 0 {
-                            Rgb::ZERO
-                        } else {
-                            Rgb::new(0.25, 0.5 + i as f32, 3.0)
-                        },
-                        p_bsdf: if i == 0 { p } else { q },
-                        p_light: if i == 0 { q } else { p },
-                        delta: kind == 2 && i == 0 && n_bsdf > 0,
-                    };
-                    let records: Vec<_> = (0..split.total() as usize).map(record).collect();
-                    let phase = Phase::of(split, &records);
-                    let mut each = vec![Rgb::ZERO; records.len()];
-                    let mut lanes = each.clone();
-                    let value_each = weighting.weigh_each(&phase, &mut each, products);
-                    let value_lanes = weighting.weigh_in_lanes(&phase, &mut lanes, products);
-                    let case = format!("{records:?}, {split:?}, factors {factors:?}");
-                    assert_eq!(bits(&each), bits(&lanes), "{case}");
-                    assert_eq!(bits(&[value_each]), bits(&[value_lanes]), "{case}");
-                    checked += 1;
-                }
-            }
-        }
-        assert_eq!(checked, 4 * 2 * 5 * 7 * 7 * 3);
-    }
-
-    /// A built-in heuristic behind a reference, as `PerSample` takes it by value.
-    struct DynHeuristic<'a>(&'a dyn Heuristic);
-
-    impl Heuristic for DynHeuristic<'_> {
-        fn weight(&self, mine: f32, other: f32) -> f32 {
-            self.0.weight(mine, other)
-        }
-
-        fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-            self.0.weight4(mine, other)
-        }
-    }
 
     /// A heuristic that only gives `weight` (as a third-party one may) gets `weight4` lane by
     /// lane; every built-in heuristic overrides it, so only this test reaches the default.

@@ -1,0 +1,404 @@
+//! The sampling engine: draws the phases an allocation asks for ([`LightSampling::phase`]),
+//! weighs them with a [`Weighting`] and shows them to observers and to the AOV statistics, one
+//! shading point at a time or, for the camera samples of a packet, with one batch call per
+//! technique for all the points ([`LightSampling::phases_together`]). Its buffers are each
+//! thread's own ([`PhaseBuffers`]): nothing is allocated per sample.
+//!
+//! Allocations ([`crate::allocation`]) draw through it and see whole phases, never records
+//! being drawn (only `cost_alpha`'s timing of the techniques, in [`crate::pilot`], calls the
+//! estimator's drawing functions itself).
+
+use crate::aovs::LightTally;
+use crate::batch::BatchScratch;
+use crate::estimator::{
+    BSDF_SAMPLE_NUMBERS, BsdfRecords, DeferredLookups, Densities, SampleRecord, draw_bsdf_samples,
+    draw_light_samples, light_record,
+};
+use crate::phase::{Observer, Phase, PhaseRole, SampleSplit};
+use crate::shading_point::ShadingPoint;
+use crate::weighting::Weighting;
+use glam::UVec2;
+use lumis_core::accel::PACKET_SIZE;
+use lumis_core::emitter::ReferencePoint;
+use lumis_core::math::Rgb;
+use lumis_core::math::lanes::widest_width;
+use lumis_core::sampler::Sampler;
+use lumis_core::scene::Scene;
+
+/// Buffers for one phase's records and contributions, reused by each thread: no allocation
+/// per sample, and after the first phases none at all.
+#[derive(Default)]
+pub struct PhaseBuffers {
+    records: Vec<SampleRecord>,
+    contributions: Vec<Rgb>,
+    deferred: DeferredLookups,
+}
+
+thread_local! {
+    /// One set per camera sample of a packet; the first is also the one of single samples.
+    static PHASE_BUFFERS: std::cell::RefCell<[PhaseBuffers; PACKET_SIZE]> =
+        std::cell::RefCell::new(Default::default());
+}
+
+impl PhaseBuffers {
+    /// Runs `f` with this thread's buffers, the ones every MIS integrator reuses for every
+    /// light of every camera sample (also for pilot passes that sample lights themselves). Not
+    /// re-entrant: `f` must not call it again.
+    pub fn with_thread_local<R>(f: impl FnOnce(&mut PhaseBuffers) -> R) -> R {
+        PHASE_BUFFERS.with_borrow_mut(|buffers| f(&mut buffers[0]))
+    }
+
+    /// Runs `f` with this thread's buffers for the camera samples of one packet, one each (for
+    /// [`LightSampling::phases_together`]). Not re-entrant.
+    pub fn with_thread_local_packet<R>(f: impl FnOnce(&mut [PhaseBuffers; PACKET_SIZE]) -> R) -> R {
+        PHASE_BUFFERS.with_borrow_mut(f)
+    }
+}
+
+/// The sampling of one non-delta light at one shading point: draws phases for an
+/// allocation ([`crate::allocation`]).
+pub struct LightSampling<'a> {
+    scene: &'a Scene,
+    point: &'a ShadingPoint<'a>,
+    light: usize,
+    pixel: UVec2,
+    /// Index of the camera sample among the pixel's.
+    camera_sample: u32,
+    sampler: &'a mut Sampler,
+    buffers: &'a mut PhaseBuffers,
+    /// The AOV statistics of this light, when an AOV asks for them.
+    tally: Option<&'a mut LightTally>,
+    /// The split and role of the last phase drawn, whose records are still in `buffers`.
+    last_phase: Option<(SampleSplit, PhaseRole)>,
+}
+
+impl<'a> LightSampling<'a> {
+    /// The sampling of light `light` at `point`, seen from `pixel`, its samples drawn from
+    /// `sampler` into `buffers`.
+    pub fn new(
+        scene: &'a Scene,
+        point: &'a ShadingPoint<'a>,
+        light: usize,
+        pixel: UVec2,
+        sampler: &'a mut Sampler,
+        buffers: &'a mut PhaseBuffers,
+    ) -> Self {
+        LightSampling {
+            scene,
+            point,
+            light,
+            pixel,
+            camera_sample: 0,
+            sampler,
+            buffers,
+            tally: None,
+            last_phase: None,
+        }
+    }
+
+    /// Also shows every phase to the AOV statistics `tally` (an observer of every phase, besides
+    /// the one each phase is drawn with).
+    pub(crate) fn with_tally(self, tally: &'a mut LightTally) -> Self {
+        LightSampling {
+            tally: Some(tally),
+            ..self
+        }
+    }
+
+    /// For camera sample `index` of the pixel (0 unless set).
+    pub fn with_camera_sample(self, index: u32) -> Self {
+        LightSampling {
+            camera_sample: index,
+            ..self
+        }
+    }
+
+    /// Index of the camera sample among the pixel's (a pilot pass in `preprocess` shades camera
+    /// sample 0's point, whose estimate may reuse the pilot's samples).
+    pub fn camera_sample(&self) -> u32 {
+        self.camera_sample
+    }
+
+    pub fn scene(&self) -> &Scene {
+        self.scene
+    }
+
+    pub fn shading_point(&self) -> &ShadingPoint<'_> {
+        self.point
+    }
+
+    /// Index of the light in `scene.emitters`.
+    pub fn light(&self) -> usize {
+        self.light
+    }
+
+    /// The pixel being rendered.
+    pub fn pixel(&self) -> UVec2 {
+        self.pixel
+    }
+
+    /// Draws one phase (`split.n_bsdf` BSDF samples, then `split.n_light` light samples, from
+    /// the camera sample's stream), weighs it with `weighting`, shows it to `observer` and to
+    /// the AOV statistics (as `role` says), and returns its estimate.
+    pub fn phase<W: Weighting + ?Sized, O: Observer + ?Sized>(
+        &mut self,
+        split: SampleSplit,
+        role: PhaseRole,
+        weighting: &W,
+        observer: &mut O,
+    ) -> Rgb {
+        let densities = densities_for(weighting);
+        self.buffers.records.clear();
+        self.prefetch_first_light_sample(split);
+        let PhaseBuffers {
+            records, deferred, ..
+        } = &mut *self.buffers;
+        let (scene, point, light) = (self.scene, self.point, self.light);
+        let sampler = &mut *self.sampler;
+        draw_bsdf_samples(
+            scene,
+            point,
+            light,
+            split.n_bsdf,
+            sampler,
+            records,
+            densities,
+            Some(deferred),
+        );
+        draw_light_samples(
+            scene,
+            point,
+            light,
+            split.n_light,
+            sampler,
+            records,
+            densities,
+        );
+        self.finish_phase(split, role, weighting, observer)
+    }
+
+    /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
+    /// camera samples of a pixel), each with its observer: `splits[k]` for `samplings[k]`,
+    /// seen by `observers[k]`, whose estimate goes to `values[k]` (`None` entries skipped).
+    /// Drawn together ([`phases_together`](Self::phases_together)) where no phase fills the
+    /// batch kernels' lanes by itself ([`SampleSplit::fills`] with [`widest_width`]), one by
+    /// one otherwise; either way every sampling gets what `phase` would give it, bit for bit.
+    pub fn phases<W: Weighting + ?Sized, O: Observer>(
+        samplings: &mut [Option<LightSampling>],
+        splits: &[SampleSplit],
+        role: PhaseRole,
+        weighting: &W,
+        observers: &mut [O],
+        values: &mut [Rgb],
+    ) {
+        let splits = &splits[..samplings.len()];
+        let lanes = widest_width() as u32;
+        let points = samplings.iter().zip(splits);
+        if points
+            .filter(|(s, _)| s.is_some())
+            .any(|(_, split)| split.fills(lanes))
+        {
+            let each = samplings.iter_mut().zip(splits).zip(observers).zip(values);
+            for (((sampling, &split), observer), value) in each {
+                if let Some(sampling) = sampling {
+                    *value = sampling.phase(split, role, weighting, observer);
+                }
+            }
+        } else {
+            Self::phases_together(samplings, splits, role, weighting, observers, values);
+        }
+    }
+
+    /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
+    /// camera samples of a pixel): `splits[k]` for `samplings[k]`, seen by `observers[k]`,
+    /// whose estimate goes to `values[k]` (`None` entries skipped). The samples are drawn with
+    /// one batch call per technique for all the points (for the BSDF, one per run of points
+    /// that share a BSDF), each from its own stream in the order `phase` draws it, so that
+    /// every sampling gets what `phase` would give it, bit for bit.
+    pub fn phases_together<W: Weighting + ?Sized, O: Observer>(
+        samplings: &mut [Option<LightSampling>],
+        splits: &[SampleSplit],
+        role: PhaseRole,
+        weighting: &W,
+        observers: &mut [O],
+        values: &mut [Rgb],
+    ) {
+        let densities = densities_for(weighting);
+        let Some((scene, light)) = samplings
+            .iter()
+            .flatten()
+            .next()
+            .map(|s| (s.scene, s.light))
+        else {
+            return;
+        };
+        BatchScratch::with_thread_local(|scratch| {
+            scratch.clear();
+            for (k, sampling) in samplings.iter_mut().enumerate() {
+                let Some(sampling) = sampling else { continue };
+                let split = splits[k];
+                sampling.buffers.records.clear();
+                sampling.prefetch_first_light_sample(split);
+                for _ in 0..split.n_bsdf {
+                    let numbers = (sampling.sampler.next_1d(), sampling.sampler.next_2d());
+                    scratch.owners.push(k);
+                    scratch.wo.push(sampling.point.wo);
+                    scratch.bsdf_numbers.push(numbers);
+                }
+            }
+            let point_of = |k: usize| samplings[k].as_ref().map(|s| s.point);
+            scratch.sample_bsdfs(|k| point_of(k).expect("an owner has a sampling").bsdf);
+            for (&owner, &s) in scratch.owners.iter().zip(&scratch.bsdf_samples) {
+                let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
+                let PhaseBuffers {
+                    records, deferred, ..
+                } = &mut *sampling.buffers;
+                BsdfRecords::new(scene, sampling.point, light, densities).push(
+                    s,
+                    records,
+                    Some(deferred),
+                );
+            }
+            scratch.owners.clear();
+            scratch.wo.clear();
+            for (k, sampling) in samplings.iter_mut().enumerate() {
+                let Some(sampling) = sampling else { continue };
+                for _ in 0..splits[k].n_light {
+                    scratch.owners.push(k);
+                    scratch.wo.push(sampling.point.wo);
+                    scratch.references.push(ReferencePoint {
+                        position: sampling.point.hit.position,
+                    });
+                    scratch.light_numbers.push(sampling.sampler.next_2d());
+                }
+            }
+            let point_of = |k: usize| samplings[k].as_ref().map(|s| s.point);
+            scratch.sample_light(scene.emitters[light].as_ref(), |k| {
+                point_of(k).expect("an owner has a sampling")
+            });
+            for ((&owner, ls), &value) in scratch
+                .owners
+                .iter()
+                .zip(&scratch.light_samples)
+                .zip(&scratch.values)
+            {
+                let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
+                sampling.buffers.records.push(match ls {
+                    Some(ls) => light_record(scene, sampling.point, light, ls, densities, || value),
+                    None => SampleRecord::default(),
+                });
+            }
+            Self::look_up_together(scene, light, samplings, scratch);
+        });
+        let finished = samplings.iter_mut().zip(splits).zip(observers).zip(values);
+        for (((sampling, &split), observer), value) in finished {
+            if let Some(sampling) = sampling {
+                *value = sampling.finish_phase(split, role, weighting, observer);
+            }
+        }
+    }
+
+    /// The lookups that the BSDF samples of `samplings` (of light `light`) left to the end of
+    /// their phases ([`DeferredLookups`]), in one batch call for all the points: an
+    /// environment's conversions of directions to map coordinates run in lanes, where one
+    /// phase of the race scenes has one such sample or none.
+    fn look_up_together(
+        scene: &Scene,
+        light: usize,
+        samplings: &mut [Option<LightSampling>],
+        scratch: &mut BatchScratch,
+    ) {
+        if scene.environment != Some(light) {
+            return;
+        }
+        scratch.clear_lookups();
+        for sampling in samplings.iter().flatten() {
+            sampling.buffers.deferred.add_to(scratch, sampling.point);
+        }
+        if scratch.directions.is_empty() {
+            return;
+        }
+        let mut values = scratch.look_up(scene.emitters[light].as_ref()).copied();
+        for sampling in samplings.iter_mut().flatten() {
+            let PhaseBuffers {
+                records, deferred, ..
+            } = &mut *sampling.buffers;
+            // Most points of a packet have none.
+            if !deferred.is_empty() {
+                deferred.fill(records, values.by_ref());
+            }
+        }
+    }
+
+    /// Before a phase of `split` is drawn: lets the light start reading what its first light
+    /// sample will need (an environment map's alias slot, a cache miss) while the BSDF samples
+    /// trace their rays. Its numbers are known now, after the BSDF samples' three each.
+    fn prefetch_first_light_sample(&self, split: SampleSplit) {
+        if split.n_light > 0 && split.n_bsdf > 0 {
+            let first_light_numbers = || {
+                let mut ahead = self.sampler.clone();
+                ahead.skip(BSDF_SAMPLE_NUMBERS * split.n_bsdf);
+                ahead.next_2d()
+            };
+            self.scene.emitters[self.light].prefetch_sample(&first_light_numbers);
+        }
+    }
+
+    /// The rest of a phase whose records are drawn: the deferred lookups, the weights, the
+    /// observer and the AOV statistics.
+    #[inline(always)]
+    fn finish_phase<W: Weighting + ?Sized, O: Observer + ?Sized>(
+        &mut self,
+        split: SampleSplit,
+        role: PhaseRole,
+        weighting: &W,
+        observer: &mut O,
+    ) -> Rgb {
+        let PhaseBuffers {
+            records,
+            contributions,
+            deferred,
+        } = &mut *self.buffers;
+        deferred.look_up(self.scene, self.point, self.light, records);
+        contributions.clear();
+        contributions.resize(records.len(), Rgb::ZERO);
+        let phase = Phase {
+            pixel: self.pixel,
+            light: self.light,
+            split,
+            role,
+            records,
+        };
+        let value = weighting.weigh(&phase, contributions);
+        observer.observe(&phase, contributions);
+        if let Some(tally) = self.tally.as_deref_mut() {
+            tally.observe(&phase, contributions);
+        }
+        self.last_phase = Some((split, role));
+        value
+    }
+
+    /// The last phase drawn and its records' contributions, until the next phase replaces
+    /// them: for an allocation that needs a pilot's samples themselves (e.g. to minimise a
+    /// function of all of them), not only what an observer accumulated.
+    pub fn last_phase(&self) -> Option<(Phase<'_>, &[Rgb])> {
+        let (split, role) = self.last_phase?;
+        let phase = Phase {
+            pixel: self.pixel,
+            light: self.light,
+            split,
+            role,
+            records: &self.buffers.records,
+        };
+        Some((phase, &self.buffers.contributions))
+    }
+}
+
+/// The densities the records of a phase weighed by `weighting` need.
+fn densities_for<W: Weighting + ?Sized>(weighting: &W) -> Densities {
+    if weighting.needs_both_densities() {
+        Densities::Both
+    } else {
+        Densities::Lit
+    }
+}
