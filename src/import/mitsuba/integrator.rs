@@ -40,16 +40,17 @@ impl Converter {
         if let Some((Value::Bool(true), l)) = p.take("hide_emitters") {
             self.problem(l, "`hide_emitters` is not converted");
         }
+        // Saturates: `power` refuses more samples than it takes, with its limit.
+        let samples = emitter.saturating_add(bsdf);
         self.note(
             p.line,
             format!(
                 "`direct` ({emitter} emitter + {bsdf} BSDF samples, one light chosen per emitter \
-                 sample) becomes lumis `power` with samples {}: the same power-heuristic estimator \
-                 of the same image, taking its samples from every light",
-                emitter + bsdf
+                 sample) becomes lumis `power` with samples {samples}: the same power-heuristic \
+                 estimator of the same image, taking its samples from every light"
             ),
         );
-        self.integrator = Some(power(emitter + bsdf));
+        self.integrator = Some(power(samples));
         self.finish(p, "the integrator");
         Ok(())
     }

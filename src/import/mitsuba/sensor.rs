@@ -184,13 +184,18 @@ impl Converter {
             return Ok(());
         }
         let spp = match p.take("sample_count") {
-            Some((Value::Int(n), _)) if n > 0 => n,
+            Some((Value::Int(n), l)) if n > 0 => u32::try_from(n).map_err(|_| {
+                format!(
+                    "line {l}: `sample_count` {n} is more than lumis takes ({})",
+                    u32::MAX
+                )
+            })?,
             Some((_, l)) => {
                 return Err(format!(
                     "line {l}: `sample_count` must be a positive integer"
                 ));
             }
-            None => DEFAULT_SPP.into(),
+            None => DEFAULT_SPP,
         };
         let seed = match p.take("seed") {
             Some((Value::Int(n), _)) if n >= 0 => n,
@@ -198,7 +203,7 @@ impl Converter {
             None => 0,
         };
         self.sampler = Some(SamplerDescription {
-            spp: spp as u32,
+            spp,
             seed: seed as u64,
             jitter: true,
         });
