@@ -6,6 +6,7 @@
 use crate::common;
 
 use common::{lumis, render, scene_file};
+use lumis::scene::description::{CropDescription, SceneDescription};
 use lumis::scene::shapes::{Mesh, cube};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -542,6 +543,185 @@ fn a_mitsuba_scene_converts_and_renders() {
             .all(|c| c.is_finite() && c.min_element() >= 0.0)
     );
     assert!(film.color.iter().any(|c| c.max_element() > 0.0));
+}
+
+/// A Mitsuba 3 scene with every part `lumis import` converts: each shape, BSDF and emitter type,
+/// a film crop, `fov_axis`, transforms by `lookat`, `matrix`, `scale`, `rotate` and `translate`.
+const MITSUBA_EVERY_PART: &str = r#"<scene version="3.0.0">
+    <default name="spp" value="4"/>
+    <integrator type="direct">
+        <integer name="emitter_samples" value="2"/>
+        <integer name="bsdf_samples" value="1"/>
+    </integrator>
+    <sensor type="perspective">
+        <float name="fov" value="50"/>
+        <string name="fov_axis" value="smaller"/>
+        <float name="near_clip" value="0.01"/>
+        <transform name="to_world">
+            <lookat origin="1, 3, 6" target="0, 0.5, 0" up="0, 1, 0"/>
+        </transform>
+        <film type="hdrfilm">
+            <integer name="width" value="40"/>
+            <integer name="height" value="30"/>
+            <integer name="crop_offset_x" value="4"/>
+            <integer name="crop_offset_y" value="2"/>
+            <integer name="crop_width" value="30"/>
+            <rfilter type="box"/>
+        </film>
+        <sampler type="independent">
+            <integer name="sample_count" value="$spp"/>
+            <integer name="seed" value="3"/>
+        </sampler>
+    </sensor>
+    <bsdf type="twosided" id="gold">
+        <bsdf type="roughconductor">
+            <string name="distribution" value="ggx"/>
+            <float name="alpha_u" value="0.25"/>
+            <float name="alpha_v" value="0.25"/>
+            <string name="material" value="none"/>
+        </bsdf>
+    </bsdf>
+    <bsdf type="conductor" id="mirror">
+        <string name="material" value="none"/>
+        <rgb name="specular_reflectance" value="0.9, 0.8, 0.7"/>
+    </bsdf>
+    <bsdf type="diffuse" id="grey">
+        <spectrum name="reflectance" value="0.3"/>
+    </bsdf>
+    <shape type="obj">
+        <string name="filename" value="cube.obj"/>
+        <boolean name="face_normals" value="true"/>
+        <transform name="to_world">
+            <scale value="0.4"/>
+            <translate x="-1" y="0.4"/>
+        </transform>
+        <ref id="gold"/>
+    </shape>
+    <shape type="ply">
+        <string name="filename" value="cube.ply"/>
+        <transform name="to_world">
+            <scale value="0.3"/>
+            <rotate y="1" angle="30"/>
+            <translate x="1" y="0.3"/>
+        </transform>
+        <ref id="mirror"/>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="0.5" z="1"/>
+        <float name="radius" value="0.5"/>
+        <bsdf type="diffuse" id="red">
+            <rgb name="reflectance" value="0.7, 0.2, 0.2"/>
+        </bsdf>
+    </shape>
+    <shape type="cube">
+        <transform name="to_world">
+            <matrix value="0.2 0 0 0.5  0 0.2 0 0.2  0 0 0.2 -1  0 0 0 1"/>
+        </transform>
+        <bsdf type="twosided">
+            <bsdf type="diffuse"/>
+        </bsdf>
+    </shape>
+    <shape type="cube">
+        <transform name="to_world">
+            <scale value="0.15"/>
+            <translate x="-0.5" y="0.15" z="1.5"/>
+        </transform>
+    </shape>
+    <shape type="disk">
+        <transform name="to_world">
+            <rotate x="1" angle="-90"/>
+            <scale value="5"/>
+        </transform>
+        <ref id="grey"/>
+    </shape>
+    <shape type="rectangle">
+        <boolean name="flip_normals" value="true"/>
+        <transform name="to_world">
+            <scale x="0.8" y="0.5"/>
+            <rotate x="1" angle="-90"/>
+            <rotate y="1" angle="20"/>
+            <translate y="3"/>
+        </transform>
+        <ref id="grey"/>
+        <emitter type="area">
+            <rgb name="radiance" value="6, 5, 4"/>
+        </emitter>
+    </shape>
+    <emitter type="point">
+        <transform name="to_world">
+            <translate x="2" y="3" z="1"/>
+        </transform>
+        <rgb name="intensity" value="3, 2, 1"/>
+        <float name="scale" value="2"/>
+    </emitter>
+    <emitter type="directional">
+        <vector name="direction" x="-1" y="-1" z="-0.5"/>
+        <rgb name="irradiance" value="0.5"/>
+    </emitter>
+    <emitter type="envmap">
+        <string name="filename" value="sky.exr"/>
+        <float name="scale" value="0.5"/>
+        <transform name="to_world">
+            <rotate y="1" angle="-60"/>
+        </transform>
+    </emitter>
+</scene>
+"#;
+
+/// `description` with every number of a plugin parameter as lumis reads it, an f32: a
+/// parameter written from an f32 reads back as the nearest f64 to its shortest decimal text.
+fn as_read(mut description: SceneDescription) -> SceneDescription {
+    fn value(v: &mut ron::Value) {
+        match v {
+            ron::Value::Number(n) => *n = ron::value::Number::from(n.into_f64() as f32),
+            ron::Value::Seq(items) => items.iter_mut().for_each(value),
+            ron::Value::Map(map) => map.values_mut().for_each(value),
+            _ => {}
+        }
+    }
+    let d = &mut description;
+    let emitters = d.shapes.iter_mut().filter_map(|s| s.emitter.as_mut());
+    let plugins = emitters
+        .chain(d.bsdfs.values_mut())
+        .chain(d.emitters.iter_mut())
+        .chain([&mut d.integrator]);
+    for plugin in plugins {
+        plugin.params.values_mut().for_each(value);
+    }
+    description
+}
+
+#[test]
+fn a_converted_scene_parses_back_into_the_same_description() {
+    let converts = |xml| {
+        let c = lumis::import::convert(xml, Path::new("xml"), Path::new("out"), &[]).unwrap();
+        assert_eq!(c.problems, [], "{xml}");
+        c
+    };
+    let c = converts(MITSUBA_EVERY_PART);
+    let d = &c.description;
+    assert_eq!(
+        (d.shapes.len(), d.bsdfs.len(), d.emitters.len()),
+        (7, 6, 3),
+        "{}",
+        c.ron
+    );
+    assert_eq!(
+        d.film.crop,
+        Some(CropDescription {
+            x: 4,
+            y: 2,
+            width: 30,
+            height: 28
+        })
+    );
+    assert_eq!(d.bsdfs["gold"].kind, "glossy");
+    assert_eq!(d.shapes[5].segments, Some(1024));
+    for c in [c.clone(), converts(MITSUBA_SCENE)] {
+        let parsed: SceneDescription =
+            ron::from_str(&c.ron).unwrap_or_else(|e| panic!("{e} in:\n{}", c.ron));
+        assert_eq!(as_read(parsed), as_read(c.description), "{}", c.ron);
+    }
 }
 
 #[test]

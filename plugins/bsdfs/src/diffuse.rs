@@ -97,8 +97,12 @@ impl Bsdf for Diffuse {
     }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "diffuse";
+pub const REFLECTANCE: &str = "reflectance";
+
 static PARAMS: &[ParamSpec] = &[ParamSpec {
-    name: "reflectance",
+    name: REFLECTANCE,
     kind: ParamKind::Rgb {
         default: Some([0.5, 0.5, 0.5]),
         max: 1.0,
@@ -108,13 +112,13 @@ static PARAMS: &[ParamSpec] = &[ParamSpec {
 }];
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
-    let reflectance = params.rgb("reflectance")?;
+    let reflectance = params.rgb(REFLECTANCE)?;
     Ok(Arc::new(Diffuse::new(reflectance)))
 }
 
 inventory::submit! {
     BsdfPlugin {
-        name: "diffuse",
+        name: NAME,
         description: "Lambertian reflection with cosine-weighted sampling",
         params: PARAMS,
         create,

@@ -304,9 +304,19 @@ impl Bsdf for Glossy {
     }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "glossy";
+pub const ROUGHNESS: &str = "roughness";
+pub const SPECULAR: &str = "specular";
+pub const DIFFUSE: &str = "diffuse";
+pub const MASKING: &str = "masking";
+/// Values of its choices.
+pub const HEIGHT_CORRELATED: &str = "height_correlated";
+pub const SEPARABLE: &str = "separable";
+
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
-        name: "roughness",
+        name: ROUGHNESS,
         kind: ParamKind::Float {
             default: Some(0.1),
             min: 1e-4,
@@ -316,7 +326,7 @@ static PARAMS: &[ParamSpec] = &[
         description: "GGX α: width of the microfacet distribution",
     },
     ParamSpec {
-        name: "specular",
+        name: SPECULAR,
         kind: ParamKind::Rgb {
             default: Some([0.04, 0.04, 0.04]),
             max: 1.0,
@@ -325,7 +335,7 @@ static PARAMS: &[ParamSpec] = &[
         description: "F0, Fresnel reflectance at normal incidence (Schlick), per channel in [0, 1]",
     },
     ParamSpec {
-        name: "diffuse",
+        name: DIFFUSE,
         kind: ParamKind::Rgb {
             default: Some([0.0, 0.0, 0.0]),
             max: 1.0,
@@ -334,10 +344,10 @@ static PARAMS: &[ParamSpec] = &[
         description: "albedo of the diffuse base layer, per channel in [0, 1]",
     },
     ParamSpec {
-        name: "masking",
+        name: MASKING,
         kind: ParamKind::Choice {
-            options: &["height_correlated", "separable"],
-            default: "height_correlated",
+            options: &[HEIGHT_CORRELATED, SEPARABLE],
+            default: HEIGHT_CORRELATED,
         },
         unit: "",
         description: "Smith masking-shadowing G2: height-correlated (as pbrt), or separable G1·G1 (as Mitsuba 3)",
@@ -345,11 +355,11 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
-    let alpha = params.float("roughness")?;
-    let f0 = params.rgb("specular")?;
-    let diffuse = params.rgb("diffuse")?;
-    let masking = match params.choice("masking")? {
-        "separable" => Masking::Separable,
+    let alpha = params.float(ROUGHNESS)?;
+    let f0 = params.rgb(SPECULAR)?;
+    let diffuse = params.rgb(DIFFUSE)?;
+    let masking = match params.choice(MASKING)? {
+        SEPARABLE => Masking::Separable,
         _ => Masking::HeightCorrelated,
     };
     Ok(Arc::new(Glossy::new(alpha, f0, diffuse, masking)))
@@ -357,7 +367,7 @@ fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
 
 inventory::submit! {
     BsdfPlugin {
-        name: "glossy",
+        name: NAME,
         description: "GGX microfacet reflection (visible-normal sampling) over an optional diffuse base",
         params: PARAMS,
         create,

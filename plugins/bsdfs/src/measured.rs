@@ -294,15 +294,19 @@ impl Bsdf for Measured {
     }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "measured";
+pub const FILE: &str = "file";
+
 static PARAMS: &[ParamSpec] = &[ParamSpec {
-    name: "file",
+    name: FILE,
     kind: ParamKind::Path,
     unit: "",
     description: "MERL .binary file of the measured BRDF, relative to the scene file",
 }];
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
-    let path = params.path("file")?;
+    let path = params.path(FILE)?;
     let table = MerlTable::read(&path).map_err(|e| {
         PluginError::Invalid(format!("{}: `{}`: {e}", params.plugin(), path.display()))
     })?;
@@ -311,7 +315,7 @@ fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
 
 inventory::submit! {
     BsdfPlugin {
-        name: "measured",
+        name: NAME,
         description: "isotropic measured BRDF (MERL format), interpolated and importance sampled from tables",
         params: PARAMS,
         create,

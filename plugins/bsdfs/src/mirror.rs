@@ -45,8 +45,12 @@ impl Bsdf for Mirror {
     }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "mirror";
+pub const REFLECTANCE: &str = "reflectance";
+
 static PARAMS: &[ParamSpec] = &[ParamSpec {
-    name: "reflectance",
+    name: REFLECTANCE,
     kind: ParamKind::Rgb {
         default: Some([1.0, 1.0, 1.0]),
         max: 1.0,
@@ -56,13 +60,13 @@ static PARAMS: &[ParamSpec] = &[ParamSpec {
 }];
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
-    let reflectance = params.rgb("reflectance")?;
+    let reflectance = params.rgb(REFLECTANCE)?;
     Ok(Arc::new(Mirror { reflectance }))
 }
 
 inventory::submit! {
     BsdfPlugin {
-        name: "mirror",
+        name: NAME,
         description: "perfect specular reflection (a delta lobe, reached only by BSDF sampling)",
         params: PARAMS,
         create,

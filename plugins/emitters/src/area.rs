@@ -361,9 +361,14 @@ fn is_planar(triangles: &[[Vec3; 3]]) -> bool {
         && vertices().all(|v| normal.dot(v.as_dvec3() - a).abs() <= tolerance)
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "area";
+pub const RADIANCE: &str = "radiance";
+pub const TWO_SIDED: &str = "two_sided";
+
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
-        name: "radiance",
+        name: RADIANCE,
         kind: ParamKind::Rgb {
             default: None,
             max: lumis_core::limits::MAX_EMISSION,
@@ -373,7 +378,7 @@ static PARAMS: &[ParamSpec] = &[
     },
     crate::SCALE,
     ParamSpec {
-        name: "two_sided",
+        name: TWO_SIDED,
         kind: ParamKind::Bool {
             default: Some(false),
         },
@@ -383,8 +388,8 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    let radiance = params.rgb("radiance")? * params.float("scale")?;
-    let two_sided = params.bool("two_sided")?;
+    let radiance = params.rgb(RADIANCE)? * params.float(crate::SCALE.name)?;
+    let two_sided = params.bool(TWO_SIDED)?;
     let surface = match context.shape {
         None => {
             return Err(PluginError::Invalid(
@@ -430,7 +435,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
 
 inventory::submit! {
     EmitterPlugin {
-        name: "area",
+        name: NAME,
         description: "uniform emission from a shape's surface, sampled by area or by subtended cone",
         params: PARAMS,
         create,

@@ -45,15 +45,20 @@ impl Emitter for DirectionalLight {
     }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "directional";
+pub const DIRECTION: &str = "direction";
+pub const IRRADIANCE: &str = "irradiance";
+
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
-        name: "direction",
+        name: DIRECTION,
         kind: ParamKind::Vec3 { default: None },
         unit: "",
         description: "direction the light travels in (toward the scene)",
     },
     ParamSpec {
-        name: "irradiance",
+        name: IRRADIANCE,
         kind: ParamKind::Rgb {
             default: None,
             max: lumis_core::limits::MAX_EMISSION,
@@ -65,15 +70,15 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    crate::not_on_a_shape(context, "directional")?;
-    let direction = params.vec3("direction")?;
+    crate::not_on_a_shape(context, NAME)?;
+    let direction = params.vec3(DIRECTION)?;
     let Some(travel) = direction.try_normalize() else {
         return Err(PluginError::Invalid(format!(
             "{}: `direction` must not be zero",
             params.plugin()
         )));
     };
-    let irradiance = params.rgb("irradiance")? * params.float("scale")?;
+    let irradiance = params.rgb(IRRADIANCE)? * params.float(crate::SCALE.name)?;
     Ok(Arc::new(DirectionalLight {
         to_light: -travel,
         irradiance,
@@ -82,7 +87,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
 
 inventory::submit! {
     EmitterPlugin {
-        name: "directional",
+        name: NAME,
         description: "light from one direction, as from a distant sun (delta: one light sample, never hit)",
         params: PARAMS,
         create,

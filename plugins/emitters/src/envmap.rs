@@ -704,16 +704,29 @@ fn approximate_acos(x: f32) -> f32 {
     if x < 0.0 { PI - r } else { r }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "envmap";
+pub const FILE: &str = "file";
+pub const ROTATION: &str = "rotation";
+pub const INTERPOLATION: &str = "interpolation";
+pub const ORIENTATION: &str = "orientation";
+pub const COMPENSATION: &str = "compensation";
+/// Values of its choices.
+pub const NEAREST: &str = "nearest";
+pub const BILINEAR: &str = "bilinear";
+pub const LUMIS: &str = "lumis";
+pub const MITSUBA: &str = "mitsuba";
+
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
-        name: "file",
+        name: FILE,
         kind: ParamKind::Path,
         unit: "",
         description: "equirectangular RGB OpenEXR image, relative to the scene file",
     },
     crate::SCALE,
     ParamSpec {
-        name: "rotation",
+        name: ROTATION,
         kind: ParamKind::Float {
             default: Some(0.0),
             min: -360.0,
@@ -723,25 +736,25 @@ static PARAMS: &[ParamSpec] = &[
         description: "rotation of the map about the up (y) axis",
     },
     ParamSpec {
-        name: "interpolation",
+        name: INTERPOLATION,
         kind: ParamKind::Choice {
-            options: &["nearest", "bilinear"],
-            default: "nearest",
+            options: &[NEAREST, BILINEAR],
+            default: NEAREST,
         },
         unit: "",
         description: "nearest: constant radiance per pixel; bilinear: between samples at pixel centres in u and on the poles' rows in θ (Mitsuba 3's placement), sampled by a piecewise-bilinear warp",
     },
     ParamSpec {
-        name: "orientation",
+        name: ORIENTATION,
         kind: ParamKind::Choice {
-            options: &["lumis", "mitsuba"],
-            default: "lumis",
+            options: &[LUMIS, MITSUBA],
+            default: LUMIS,
         },
         unit: "",
         description: "lumis: the map's centre column looks toward −z; mitsuba: toward +z, as Mitsuba 3 (a half turn about y)",
     },
     ParamSpec {
-        name: "compensation",
+        name: COMPENSATION,
         kind: ParamKind::Bool {
             default: Some(false),
         },
@@ -751,20 +764,20 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    crate::not_on_a_shape(context, "envmap")?;
-    let path = params.path("file")?;
+    crate::not_on_a_shape(context, NAME)?;
+    let path = params.path(FILE)?;
     let settings = MapSettings {
-        scale: params.float("scale")?,
-        rotation_degrees: params.float("rotation")?,
-        interpolation: match params.choice("interpolation")? {
-            "bilinear" => Interpolation::Bilinear,
+        scale: params.float(crate::SCALE.name)?,
+        rotation_degrees: params.float(ROTATION)?,
+        interpolation: match params.choice(INTERPOLATION)? {
+            BILINEAR => Interpolation::Bilinear,
             _ => Interpolation::Nearest,
         },
-        orientation: match params.choice("orientation")? {
-            "mitsuba" => Orientation::Mitsuba,
+        orientation: match params.choice(ORIENTATION)? {
+            MITSUBA => Orientation::Mitsuba,
             _ => Orientation::Lumis,
         },
-        compensation: params.bool("compensation")?,
+        compensation: params.bool(COMPENSATION)?,
     };
     let image = read_exr_rgb(&path)
         .map_err(|e| PluginError::Invalid(format!("{}: {e}", params.plugin())))?;
@@ -784,7 +797,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
 
 inventory::submit! {
     EmitterPlugin {
-        name: "envmap",
+        name: NAME,
         description: "equirectangular environment map (nearest or bilinear), importance sampled by luminance × sin θ",
         params: PARAMS,
         create,

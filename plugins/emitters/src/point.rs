@@ -50,15 +50,20 @@ impl Emitter for PointLight {
     }
 }
 
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "point";
+pub const POSITION: &str = "position";
+pub const INTENSITY: &str = "intensity";
+
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
-        name: "position",
+        name: POSITION,
         kind: ParamKind::Vec3 { default: None },
         unit: "",
         description: "position of the light",
     },
     ParamSpec {
-        name: "intensity",
+        name: INTENSITY,
         kind: ParamKind::Rgb {
             default: None,
             max: lumis_core::limits::MAX_EMISSION,
@@ -70,9 +75,9 @@ static PARAMS: &[ParamSpec] = &[
 ];
 
 fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitter>, PluginError> {
-    crate::not_on_a_shape(context, "point")?;
-    let position = params.vec3("position")?;
-    let intensity = params.rgb("intensity")? * params.float("scale")?;
+    crate::not_on_a_shape(context, NAME)?;
+    let position = params.vec3(POSITION)?;
+    let intensity = params.rgb(INTENSITY)? * params.float(crate::SCALE.name)?;
     Ok(Arc::new(PointLight {
         position,
         intensity,
@@ -81,7 +86,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
 
 inventory::submit! {
     EmitterPlugin {
-        name: "point",
+        name: NAME,
         description: "isotropic point light (delta: one light sample, never hit)",
         params: PARAMS,
         create,

@@ -1,0 +1,66 @@
+//! File names: resolved against the XML file's folder, written relative to the RON file's.
+
+use std::path::{Component, Path, PathBuf};
+
+/// The file `name` of an XML file in `xml_dir`, as a RON file in `out_dir` must write it
+/// (absolute names as they are, `/` as the separator).
+pub(super) fn as_written_from(name: &str, xml_dir: &Path, out_dir: &Path) -> String {
+    let path = Path::new(name);
+    if path.is_absolute() {
+        return name.to_string();
+    }
+    relative_path(&xml_dir.join(path), out_dir)
+        .to_string_lossy()
+        .replace('\\', "/")
+}
+
+/// The components of `p` with `.` and `..` resolved lexically.
+fn normal(p: &Path) -> Vec<Component<'_>> {
+    let mut out: Vec<Component> = Vec::new();
+    for c in p.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// `target` relative to the directory `base` (both made absolute, `.` and `..` resolved
+/// lexically).
+fn relative_path(target: &Path, base: &Path) -> PathBuf {
+    let (Ok(target_abs), Ok(base_abs)) = (std::path::absolute(target), std::path::absolute(base))
+    else {
+        return target.to_path_buf();
+    };
+    let (t, b) = (normal(&target_abs), normal(&base_abs));
+    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c.as_os_str());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_paths_climb_to_the_common_directory() {
+        assert_eq!(
+            relative_path(Path::new("/a/b/meshes/x.obj"), Path::new("/a/c")),
+            PathBuf::from("../b/meshes/x.obj")
+        );
+        assert_eq!(
+            relative_path(Path::new("/a/./b/../x.obj"), Path::new("/a")),
+            PathBuf::from("x.obj")
+        );
+    }
+}
