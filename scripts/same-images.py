@@ -8,12 +8,15 @@ the file is laid out), so that a refactoring can show it leaves the images bit f
     scripts/same-images.py --compare before/hashes.txt after/hashes.txt
 
 Needs the Python packages OpenEXR and numpy (`pip install OpenEXR numpy` in a virtual
-environment). Renders go to the output directory, never into the source tree.
+environment). The scenes are rendered from a copy in the output directory, where the measured
+BRDFs they use are generated first; nothing is written into the source tree.
 """
 
 import argparse
 import hashlib
 import pathlib
+import shlex
+import shutil
 import subprocess
 import sys
 
@@ -44,10 +47,28 @@ CONFIGS = [
 AOVS = ['integrator.aovs=["alpha", "sampling_variance", "samples"]', "integrator.aovs=[]"]
 
 
-def scenes():
-    found = sorted((ROOT / "scenes").glob("*.ron")) + sorted((ROOT / "scenes" / "paper").glob("*.ron"))
+def scenes(root):
+    found = sorted(root.glob("*.ron")) + sorted((root / "paper").glob("*.ron"))
     # plugin.ron needs the example plugin library, built apart.
     return [s for s in found if s.name != "plugin.ron"]
+
+
+def copy_scenes(lumis, out):
+    """A copy of scenes/ in `out` with the measured BRDFs the scenes document (the commands of
+    scenes/generate.sh, run with `lumis` and written into the copy, not the source tree)."""
+    copy = out / "scenes"
+    if copy.exists():
+        shutil.rmtree(copy)
+    shutil.copytree(ROOT / "scenes", copy, ignore=shutil.ignore_patterns("*.binary"))
+    prefix = "//   cargo run --release -- merl "
+    commands = sorted({line for ron in scenes(ROOT / "scenes") for line in ron.read_text().splitlines()
+                       if line.startswith(prefix)})
+    for line in commands:
+        args = shlex.split(line[len("//   cargo run --release -- "):])
+        target = copy / pathlib.Path(args[-1]).relative_to("scenes")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.run([str(lumis)] + args[:-1] + [str(target)], check=True, capture_output=True)
+    return copy
 
 
 def pixel_hash(path):
@@ -67,7 +88,7 @@ def render_all(lumis, out, quick):
     out.mkdir(parents=True, exist_ok=True)
     lines = []
     spps = [1, 4] if not quick else [4]
-    for scene in scenes():
+    for scene in scenes(copy_scenes(lumis, out)):
         for name, sets in CONFIGS:
             for aov_index, aovs in enumerate(AOVS):
                 for spp in spps:
@@ -87,6 +108,7 @@ def render_all(lumis, out, quick):
                         exr.with_suffix(".png").unlink(missing_ok=True)
                     print(lines[-1], flush=True)
     (out / "hashes.txt").write_text("\n".join(lines) + "\n")
+    shutil.rmtree(out / "scenes")
     print(f"{len(lines)} renders, {sum('error' in l for l in lines)} errors: {out / 'hashes.txt'}")
 
 
