@@ -4,9 +4,9 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec2, Vec3};
-use lumis::accel::{Geometry, Intersection, PACKET_SIZE, Ray, RayOrigin};
 use lumis::bsdf::Bsdf;
 use lumis::emitter::{Emitter, ReferencePoint};
+use lumis::geometry::{Geometry, Intersection, Mesh, PACKET_SIZE, Ray, RayOrigin, ShapeGeometry};
 use lumis::integrator::CameraSample;
 use lumis::integrators::allocation::{LightSampling, PhaseBuffers, SampleSplit};
 use lumis::integrators::alpha::SecondOrderMoments;
@@ -18,7 +18,6 @@ use lumis::integrators::weighting::{PerSample, Weighting};
 use lumis::math::Rgb;
 use lumis::math::lanes::{MAX_WIDTH, limit_width};
 use lumis::sampler::Sampler;
-use lumis::scene::shapes::{Mesh, ShapeGeometry};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -6,7 +6,7 @@
 use crate::common;
 
 use common::{lumis, render, scene_file};
-use lumis::scene::shapes::{Mesh, cube};
+use lumis::geometry::{Mesh, cube};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -226,7 +226,7 @@ fn obj_polygons_groups_and_normal_options() {
         common::load(&path, &[])
     };
     let mesh_of = |loaded: lumis::scene::LoadedScene| match &loaded.scene.geometry.shapes()[0] {
-        lumis::scene::shapes::ShapeGeometry::Mesh(m) => m.clone(),
+        lumis::geometry::ShapeGeometry::Mesh(m) => m.clone(),
         _ => panic!("not a mesh"),
     };
     let b = mesh_of(load(r#", mesh: "b""#).unwrap());

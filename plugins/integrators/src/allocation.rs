@@ -11,8 +11,8 @@ use crate::estimator::{
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::Weighting;
 use glam::UVec2;
-use lumis_core::accel::PACKET_SIZE;
 use lumis_core::emitter::ReferencePoint;
+use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::widest_width;
 use lumis_core::sampler::Sampler;

@@ -27,7 +27,7 @@ use crate::estimator::SampleRecord;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC};
 use crate::phase::{Observer, Phase, PhaseRole};
 use crate::weighting::{PerSample, Weighting};
-use lumis_core::accel::PACKET_SIZE;
+use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::integrator::Integrator;
 use lumis_core::math::lanes::{LaneKernel, Lanes, MAX_WIDTH, Mask, V3, with_widest_lanes};
 use lumis_core::math::{Rgb, luminance, luminance_lanes};

@@ -13,9 +13,9 @@
 //! allocation per sample), so that a method weighs and observes them as plain slices.
 
 use glam::{Vec2, Vec3};
-use lumis_core::accel::{FirstHit, Intersection, Ray, RayOrigin};
 use lumis_core::bsdf::{Bsdf, BsdfSample};
 use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
+use lumis_core::geometry::{FirstHit, Intersection, Ray, RayOrigin};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;

@@ -9,7 +9,7 @@ use crate::allocation::{Allocation, LightEstimate, LightSampling, PhaseBuffers};
 use crate::aovs::{self, AovRequest, LightTally};
 use crate::estimator::{ShadingPoint, emitted, estimate_delta_light};
 use crate::weighting::Weighting;
-use lumis_core::accel::PACKET_SIZE;
+use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;
