@@ -401,8 +401,8 @@ fn area_lights(c: &mut Criterion) {
         ("sphere", "scenes/veach.ron", 1),
         ("quad", "scenes/cornell.ron", 0),
     ] {
-        let loaded =
-            lumis::scene::load_scene(&repo(scene_file), &[]).unwrap_or_else(|e| panic!("{e}"));
+        let loaded = lumis::scene::load::load_scene(&repo(scene_file), &[])
+            .unwrap_or_else(|e| panic!("{e}"));
         let scene = &loaded.scene;
         let emitter = scene.emitters[light].as_ref();
         // Points the camera sees, POINT_SAMPLES samples at each.
@@ -583,8 +583,8 @@ fn envmap(c: &mut Criterion) {
 /// accumulates Î₁ and Î₂.
 fn alpha_estimator(c: &mut Criterion) {
     lumis::link_plugins();
-    let loaded =
-        lumis::scene::load_scene(&repo("scenes/veach.ron"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let loaded = lumis::scene::load::load_scene(&repo("scenes/veach.ron"), &[])
+        .unwrap_or_else(|e| panic!("{e}"));
     let scene = &loaded.scene;
     // A pixel on the second plate, lit by every light.
     let pixel = glam::UVec2::new(160, 150);

@@ -225,7 +225,8 @@ fn obj_polygons_groups_and_normal_options() {
         .unwrap();
         common::load(&path, &[])
     };
-    let mesh_of = |loaded: lumis::scene::LoadedScene| match &loaded.scene.geometry.shapes()[0] {
+    let mesh_of = |loaded: lumis::scene::load::LoadedScene| match &loaded.scene.geometry.shapes()[0]
+    {
         lumis::geometry::ShapeGeometry::Mesh(m) => m.clone(),
         _ => panic!("not a mesh"),
     };

@@ -21,8 +21,6 @@ use crate::output::Window;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-pub use load::{LoadedScene, load_scene};
-
 /// Everything an integrator needs to render: camera, surfaces, materials and lights.
 pub struct Scene {
     pub camera: Camera,
