@@ -231,7 +231,7 @@ impl Geometry {
     /// The closest intersections along rays that share an origin, such as a pinhole camera's
     /// rays through one pixel: `hits[i]` is what [`Geometry::intersect`] returns for `rays[i]`,
     /// found by traversing the BVH once for up to [`PACKET_SIZE`] rays
-    /// ([`WideBvh::closest_hit_packet`]). Each ray tests every primitive its own traversal
+    /// (`WideBvh::closest_hit_packet`). Each ray tests every primitive its own traversal
     /// would test before reaching its closest hit, so it finds that hit; only where two
     /// primitives are hit at exactly the same distance may the other order of the nodes give
     /// the other one. Rays that do not share an origin and direction signs are traced one by

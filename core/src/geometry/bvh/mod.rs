@@ -23,12 +23,10 @@ const MAX_LEAF_PRIMITIVES: u32 = 3;
 /// obvhs's, `cwbvh::TRAVERSAL_STACK_SIZE`).
 const TRAVERSAL_STACK_SIZE: usize = 32;
 
-/// Most rays in a [`PacketBoxTest`]: two 8-lane registers hold one value of each. 16 rather
+/// Most rays in a `PacketBoxTest`: two 8-lane registers hold one value of each. 16 rather
 /// than 8: the packet's node test is paid once for twice as many rays of one pixel (the
 /// dragon, 8 against 16: × 1.058 and × 1.053 in two runs, 1.011 n.s. in a third;
 /// docs/performance.md).
-///
-/// [`PacketBoxTest`]: node_test::PacketBoxTest
 pub const PACKET_SIZE: usize = 16;
 
 /// Eight children's boxes and references (256 bytes, four cache lines).
