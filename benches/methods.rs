@@ -145,7 +145,7 @@ fn run(
         format!("integrator.samples={}", o.samples),
     ];
     overrides.extend(method.2.iter().map(|p| p.to_string()));
-    let mut loaded = lumis::scene::load_scene(scene, &overrides)
+    let mut loaded = lumis::scene::load::load_scene(scene, &overrides)
         .map_err(|e| format!("{}: {e}", scene.display()))?;
     let start = cpu_time();
     loaded.integrator.preprocess(&loaded.scene);
@@ -166,7 +166,7 @@ fn costs(o: &Options, scene: &std::path::Path) -> Result<(), String> {
         format!("film.width={}", o.size),
         format!("film.height={}", o.size),
     ];
-    let loaded = lumis::scene::load_scene(scene, &overrides)
+    let loaded = lumis::scene::load::load_scene(scene, &overrides)
         .map_err(|e| format!("{}: {e}", scene.display()))?;
     let mut ratios: Vec<Vec<f64>> = Vec::new();
     let mut seconds = Vec::new();

@@ -4,9 +4,9 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec2, Vec3};
-use lumis::accel::{Geometry, Intersection, PACKET_SIZE, Ray, RayOrigin};
 use lumis::bsdf::Bsdf;
 use lumis::emitter::{Emitter, ReferencePoint};
+use lumis::geometry::{Geometry, Intersection, Mesh, PACKET_SIZE, Ray, RayOrigin, ShapeGeometry};
 use lumis::integrator::CameraSample;
 use lumis::integrators::estimator::SampleRecord;
 use lumis::integrators::phase::{Observer, Phase, PhaseRole, SampleSplit};
@@ -18,7 +18,6 @@ use lumis::integrators::weighting::{Balance, PerSample, Weighting};
 use lumis::math::Rgb;
 use lumis::math::lanes::{MAX_WIDTH, limit_width};
 use lumis::sampler::Sampler;
-use lumis::scene::shapes::{Mesh, ShapeGeometry};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -402,8 +401,8 @@ fn area_lights(c: &mut Criterion) {
         ("sphere", "scenes/veach.ron", 1),
         ("quad", "scenes/cornell.ron", 0),
     ] {
-        let loaded =
-            lumis::scene::load_scene(&repo(scene_file), &[]).unwrap_or_else(|e| panic!("{e}"));
+        let loaded = lumis::scene::load::load_scene(&repo(scene_file), &[])
+            .unwrap_or_else(|e| panic!("{e}"));
         let scene = &loaded.scene;
         let emitter = scene.emitters[light].as_ref();
         // Points the camera sees, POINT_SAMPLES samples at each.
@@ -584,8 +583,8 @@ fn envmap(c: &mut Criterion) {
 /// accumulates Î₁ and Î₂.
 fn alpha_estimator(c: &mut Criterion) {
     lumis::link_plugins();
-    let loaded =
-        lumis::scene::load_scene(&repo("scenes/veach.ron"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let loaded = lumis::scene::load::load_scene(&repo("scenes/veach.ron"), &[])
+        .unwrap_or_else(|e| panic!("{e}"));
     let scene = &loaded.scene;
     // A pixel on the second plate, lit by every light.
     let pixel = glam::UVec2::new(160, 150);

@@ -524,7 +524,7 @@ fn render(args: RenderArgs) -> Result<()> {
         .map_err(anyhow::Error::msg)?;
     let threads = worker_threads(args.threads);
     let load_start = std::time::Instant::now();
-    let mut loaded = lumis::scene::load_scene(&args.scene, &overrides)?;
+    let mut loaded = lumis::scene::load::load_scene(&args.scene, &overrides)?;
     let load_time = load_start.elapsed();
     for warning in &loaded.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
@@ -648,7 +648,7 @@ fn render(args: RenderArgs) -> Result<()> {
 fn render_shard(
     args: &RenderArgs,
     overrides: Vec<String>,
-    mut loaded: lumis::scene::LoadedScene,
+    mut loaded: lumis::scene::load::LoadedScene,
     shard: lumis::render::Shard,
     threads: usize,
 ) -> Result<()> {

@@ -245,7 +245,7 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
         sums.add(&shard.sums)
             .map_err(|e| anyhow::anyhow!("`{}`: {e}", path.display()))?;
     }
-    let loaded = lumis_core::scene::load_scene(&first.scene_path, &first.overrides)
+    let loaded = lumis_core::scene::load::load_scene(&first.scene_path, &first.overrides)
         .with_context(|| "the shards' scene, to resolve their sums")?;
     let scene = &loaded.scene;
     let integrator = loaded.integrator.as_ref();

@@ -6,8 +6,8 @@
 use crate::common;
 
 use common::{lumis, render, scene_file};
+use lumis::geometry::{Mesh, cube};
 use lumis::scene::description::{CropDescription, SceneDescription};
-use lumis::scene::shapes::{Mesh, cube};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -226,8 +226,9 @@ fn obj_polygons_groups_and_normal_options() {
         .unwrap();
         common::load(&path, &[])
     };
-    let mesh_of = |loaded: lumis::scene::LoadedScene| match &loaded.scene.geometry.shapes()[0] {
-        lumis::scene::shapes::ShapeGeometry::Mesh(m) => m.clone(),
+    let mesh_of = |loaded: lumis::scene::load::LoadedScene| match &loaded.scene.geometry.shapes()[0]
+    {
+        lumis::geometry::ShapeGeometry::Mesh(m) => m.clone(),
         _ => panic!("not a mesh"),
     };
     let b = mesh_of(load(r#", mesh: "b""#).unwrap());

@@ -199,7 +199,7 @@ fn gltf_meshes_load_with_node_transforms_and_names() {
         ),
     );
     let loaded = load(&path, &[]).expect("bunny loads");
-    let lumis::scene::shapes::ShapeGeometry::Mesh(mesh) = &loaded.scene.geometry.shapes()[0] else {
+    let lumis::geometry::ShapeGeometry::Mesh(mesh) = &loaded.scene.geometry.shapes()[0] else {
         panic!("a mesh");
     };
     assert_eq!(mesh.indices.len(), 3674);
@@ -808,7 +808,7 @@ fn cancelling_stops_at_the_next_packet_and_keeps_finished_pixels() {
     )
     .expect("render");
     // Sample 500 of the third pixel is in its packet 500 / PACKET_SIZE, which is shaded whole.
-    let packet = lumis::accel::PACKET_SIZE as u64;
+    let packet = lumis::geometry::PACKET_SIZE as u64;
     let shaded = 2000 + (500 / packet + 1) * packet;
     assert_eq!(integrator.shaded.load(Ordering::Relaxed), shaded);
     assert_eq!((stats.pixels_done, stats.pixels_total), (2, 256));

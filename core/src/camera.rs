@@ -1,6 +1,6 @@
 //! The perspective pinhole camera.
 
-use crate::accel::Ray;
+use crate::geometry::Ray;
 use crate::math::lanes::{Lanes, V3};
 use glam::{Vec2, Vec3, Vec4};
 
@@ -49,7 +49,7 @@ impl Camera {
             }
         }
         // Scaled before normalising: a camera 1e-25 from its target still has a direction.
-        let forward = crate::scene::shapes::unit_normal(target - position);
+        let forward = crate::geometry::unit_normal(target - position);
         if forward == Vec3::ZERO {
             return Err("camera `position` and `target` must differ".into());
         }

@@ -1,8 +1,8 @@
 //! The emitter interface: light sources, sampled in solid angle from a reference point.
 
+use crate::geometry::ShapeGeometry;
 use crate::math::Rgb;
 use crate::math::lanes::{LaneKernel, Lanes, Mask, V3, by_groups, one_or_each, with_widest_lanes};
-use crate::scene::shapes::ShapeGeometry;
 use glam::{Vec2, Vec3};
 
 /// The point being lit.

@@ -7,7 +7,7 @@
 //! the samples of a pixel may be shaded in several parts (tiles, shards, sample ranges) whose
 //! sums add up exactly to those of one pass; averages are formed only in `resolve`.
 
-use crate::accel::{Intersection, PACKET_SIZE, Ray};
+use crate::geometry::{Intersection, PACKET_SIZE, Ray};
 use crate::math::Rgb;
 use crate::output::Aov;
 use crate::sampler::Sampler;
@@ -139,7 +139,7 @@ impl CameraSample {
     /// camera samples of one pixel share the camera's origin and nearly a direction, so they
     /// visit the same nodes. Each sample keeps its hit for [`CameraSample::hit`].
     ///
-    /// [`Geometry::intersect_packet`]: crate::accel::Geometry::intersect_packet
+    /// [`Geometry::intersect_packet`]: crate::geometry::Geometry::intersect_packet
     pub fn trace_together(scene: &Scene, samples: &mut [CameraSample]) {
         for samples in samples.chunks_mut(PACKET_SIZE) {
             let n = samples.len();

@@ -1,15 +1,14 @@
 //! lumis-core: the renderer's interfaces and machinery. It contains no plugin: BSDFs, emitters
 //! and integrators live in the plugin crates and register themselves with [`registry`].
 
-pub mod accel;
 pub mod bsdf;
-pub mod bvh;
 pub mod camera;
 pub mod chi2;
 pub mod dylib;
 pub mod emitter;
 pub mod error;
 pub mod film;
+pub mod geometry;
 pub mod huge_pages;
 pub mod image_io;
 pub mod integrator;
@@ -22,6 +21,5 @@ pub mod render;
 pub mod render_files;
 pub mod sampler;
 pub mod scene;
-pub mod wide_bvh;
 
 pub use inventory;

@@ -10,8 +10,8 @@
 //! tiles to [`FilmSums`], which add up and resolve, with the code that resolves a tile, to the
 //! one-process film bit for bit (docs/distributed.md).
 
-use crate::accel::{PACKET_SIZE, take_ray_count};
 use crate::film::Film;
+use crate::geometry::{PACKET_SIZE, take_ray_count};
 use crate::integrator::{CameraSample, Integrator};
 use crate::math::Rgb;
 use crate::output::Window;

@@ -44,10 +44,10 @@ pub fn lumis(cwd: &Path, args: &[&str]) -> Output {
 pub fn load(
     path: &Path,
     overrides: &[&str],
-) -> Result<lumis::scene::LoadedScene, lumis::error::SceneError> {
+) -> Result<lumis::scene::load::LoadedScene, lumis::error::SceneError> {
     lumis::link_plugins();
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    lumis::scene::load_scene(path, &overrides)
+    lumis::scene::load::load_scene(path, &overrides)
 }
 
 /// The names of every registered built-in integrator, so that a new one is tested without being

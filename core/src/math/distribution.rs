@@ -305,7 +305,7 @@ impl Distribution2D {
     pub fn prefetch_sample(&self, u: glam::Vec2) -> usize {
         let (row, slot, _, _) = self.start(u);
         let index = row * self.nx + slot;
-        super::prefetch(&self.slots[index]);
+        super::cache::prefetch(&self.slots[index]);
         index
     }
 

@@ -998,11 +998,11 @@ mod tests {
     }
 
     fn next_up(x: f32) -> f32 {
-        crate::math::next_float_up(x)
+        crate::math::float::next_float_up(x)
     }
 
     fn next_down(x: f32) -> f32 {
-        crate::math::next_float_down(x)
+        crate::math::float::next_float_down(x)
     }
 
     /// Doubles `len` inputs through `by_groups::<W>`, checking that a last partial group

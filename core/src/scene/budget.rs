@@ -2,8 +2,7 @@
 //! BVH, the film) are made, so that a scene too large for the machine is refused with the
 //! figure and the limit instead of aborting on a failed allocation.
 
-use super::shapes::ShapeGeometry;
-use crate::accel::BVH_BYTES_PER_PRIMITIVE;
+use crate::geometry::{BVH_BYTES_PER_PRIMITIVE, ShapeGeometry};
 use crate::limits::MemoryEstimate;
 use crate::output::Window;
 

@@ -2,7 +2,7 @@
 //! node transforms and, when present, vertex normals. Textures and materials are not read:
 //! materials come from the scene file, and no scene uses textures.
 
-use super::shapes::Mesh;
+use crate::geometry::Mesh;
 use base64::Engine;
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
@@ -73,7 +73,7 @@ pub(super) fn load_parts(
             ));
         }
         // A node scaled to nothing (a common way to hide one) has no surface: it is skipped.
-        let flattened = super::shapes::check_affine(&world).is_err();
+        let flattened = super::transform::check_affine(&world).is_err();
         let selected = selected
             || only.is_some_and(|name| {
                 node.name() == Some(name) || node.mesh().and_then(|m| m.name()) == Some(name)

@@ -6,9 +6,9 @@
 //! node), each before its children, in the file's order, with their world transforms.
 
 use super::description::{CameraDescription, PluginSpec};
-use super::shapes::Mesh;
 use crate::camera::Camera;
 use crate::error::{SceneError, did_you_mean};
+use crate::geometry::Mesh;
 use glam::{Mat4, Vec3};
 use ron::Value;
 use std::collections::BTreeMap;

@@ -10,8 +10,8 @@
 //! be missed (the warning says "likely"); its cost is bounded by [`MAX_PROBE_RAYS`].
 
 use super::Scene;
-use crate::accel::{Intersection, Ray};
 use crate::emitter::{EmitterHit, ReferencePoint};
+use crate::geometry::{Intersection, Ray};
 use crate::math::{Frame, Rgb};
 use glam::Vec2;
 

@@ -3,12 +3,13 @@
 
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;
-use super::shapes::{self, ShapeGeometry, Sphere};
+use super::shape_check::check_shape;
+use super::transform::transform_matrix;
 use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply};
-use crate::accel::Geometry;
 use crate::bsdf::Bsdf;
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::{SceneError, did_you_mean};
+use crate::geometry::{self, Geometry, Mesh, ShapeGeometry, Sphere};
 use crate::integrator::Integrator;
 use crate::output::Window;
 use crate::params::Params;
@@ -199,7 +200,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             }
         }
         for (bsdf, geometry) in parts {
-            crate::accel::check_shape(&geometry).map_err(|e| err(format!("{label}: {e}")))?;
+            check_shape(&geometry).map_err(|e| err(format!("{label}: {e}")))?;
             if shape.emitter.is_some()
                 && let ShapeGeometry::Mesh(mesh) = &geometry
             {
@@ -239,7 +240,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             continue;
         }
         let file = base.join(shape.file.as_deref().unwrap_or_default());
-        let matrix = shapes::transform_matrix(&shape.transform).map_err(err)?;
+        let matrix = transform_matrix(&shape.transform).map_err(err)?;
         let lights = std::fs::read(&file)
             .map_err(|e| format!("cannot read glTF file: {e}"))
             .and_then(|bytes| gltf_scene::gltf_lights(&bytes, &matrix))
@@ -415,7 +416,7 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
 fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, ShapeError> {
     let scene_err = |m: String| ShapeError::Scene(m);
     check_shape_fields(shape)?;
-    let matrix = shapes::transform_matrix(&shape.transform).map_err(scene_err)?;
+    let matrix = transform_matrix(&shape.transform).map_err(scene_err)?;
     let mesh = match shape.kind.as_str() {
         "gltf" => {
             let file = shape
@@ -438,8 +439,8 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
             }
             .map_err(|m| ShapeError::Asset(file.clone(), m))?
         }
-        "rectangle" => shapes::rectangle(),
-        "cube" => shapes::cube(),
+        "rectangle" => geometry::rectangle(),
+        "cube" => geometry::cube(),
         "disk" => {
             let segments = shape.segments.unwrap_or(64);
             if !(3..=1 << 20).contains(&segments) {
@@ -447,7 +448,7 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
                     "disk `segments` must be in 3..=1048576, found {segments}"
                 )));
             }
-            shapes::disk(segments)
+            geometry::disk(segments)
         }
         _ => {
             let radius = shape.radius.unwrap_or(1.0);
@@ -482,11 +483,7 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
 }
 
 /// The shape's normal options, then its transform.
-fn finish_mesh(
-    shape: &ShapeDescription,
-    mut mesh: shapes::Mesh,
-    matrix: &glam::Mat4,
-) -> shapes::Mesh {
+fn finish_mesh(shape: &ShapeDescription, mut mesh: Mesh, matrix: &glam::Mat4) -> Mesh {
     if shape.face_normals == Some(true) {
         mesh.normals = None;
     }
@@ -507,7 +504,7 @@ fn build_gltf_material_parts(
         ));
     }
     check_shape_fields(shape)?;
-    let matrix = shapes::transform_matrix(&shape.transform).map_err(ShapeError::Scene)?;
+    let matrix = transform_matrix(&shape.transform).map_err(ShapeError::Scene)?;
     let file = shape
         .file
         .as_ref()

@@ -9,18 +9,17 @@ pub mod load;
 pub mod obj;
 pub mod overrides;
 pub mod ply;
-pub mod shapes;
+pub mod shape_check;
 pub mod syntax;
+pub mod transform;
 
-use crate::accel::{Geometry, Intersection, Ray};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::Emitter;
+use crate::geometry::{Geometry, Intersection, Ray};
 use crate::output::Window;
 use std::path::PathBuf;
 use std::sync::Arc;
-
-pub use load::{LoadedScene, load_scene};
 
 /// Everything an integrator needs to render: camera, surfaces, materials and lights.
 pub struct Scene {

@@ -12,7 +12,7 @@
 //! A small parser of our own rather than `tobj`: its errors are a bare kind without the line,
 //! and a file that fails to load must say where and why.
 
-use super::shapes::Mesh;
+use crate::geometry::Mesh;
 use glam::Vec3;
 use std::borrow::Cow;
 use std::collections::HashMap;

@@ -8,7 +8,7 @@
 //! byte where a file goes wrong. Every count is checked against the bytes the file holds before
 //! anything is allocated for it.
 
-use super::shapes::Mesh;
+use crate::geometry::Mesh;
 use glam::Vec3;
 use std::path::Path;
 

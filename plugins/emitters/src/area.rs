@@ -14,18 +14,17 @@
 //! better than area sampling for small, distant spheres.
 
 use glam::{Vec2, Vec3};
-use lumis_core::accel::{Ray, ray_meets_triangle};
 use lumis_core::emitter::{
     Emitter, EmitterContext, EmitterHit, EmitterLanes, EmitterSample, EmitterSampleLanes,
     ReferencePoint, sample_direction_in_lanes,
 };
+use lumis_core::geometry::{Ray, ShapeGeometry, Sphere, ray_meets_triangle};
 use lumis_core::math::frame::FrameLanes;
 use lumis_core::math::lanes::{Lanes, MAX_WIDTH, Mask, V3};
 use lumis_core::math::warp::square_to_triangle_barycentrics_lanes;
 use lumis_core::math::{Distribution1D, Rgb};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::EmitterPlugin;
-use lumis_core::scene::shapes::{ShapeGeometry, Sphere};
 use std::f32::consts::{PI, TAU};
 use std::sync::Arc;
 

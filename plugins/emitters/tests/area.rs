@@ -3,12 +3,12 @@
 //! (or within rounding of) the triangles' edges, where u is 0 or 1/2.
 
 use glam::{Vec2, Vec3};
-use lumis_core::accel::{Geometry, Ray};
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, ReferencePoint};
+use lumis_core::geometry::{self, Geometry, Ray, ShapeGeometry};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, EmitterPlugin};
 use lumis_core::scene::description::{RotationDescription, TransformDescription};
-use lumis_core::scene::shapes::{self, ShapeGeometry};
+use lumis_core::scene::transform::transform_matrix;
 use std::sync::Arc;
 
 /// A two-sided 2 × 2 square light in the plane y = 0 (two triangles sharing a diagonal), and the
@@ -20,7 +20,7 @@ fn square_light() -> (Arc<dyn Emitter>, Geometry) {
 /// An `area` light with `params` on the 2 × 2 square in the plane y = 0, whose front faces −y
 /// (the rectangle faces +z and is turned by 90° about x).
 fn light_on_square(params: &str) -> (Arc<dyn Emitter>, Geometry) {
-    let m = shapes::transform_matrix(&TransformDescription {
+    let m = transform_matrix(&TransformDescription {
         rotate: vec![RotationDescription {
             axis: [1.0, 0.0, 0.0],
             angle: 90.0,
@@ -28,7 +28,7 @@ fn light_on_square(params: &str) -> (Arc<dyn Emitter>, Geometry) {
         ..Default::default()
     })
     .unwrap();
-    let shape = ShapeGeometry::Mesh(shapes::rectangle().transformed(&m));
+    let shape = ShapeGeometry::Mesh(geometry::rectangle().transformed(&m));
     (area_light(&shape, params), Geometry::new(vec![shape]))
 }
 
@@ -184,7 +184,7 @@ fn one_sided_lights_emit_from_their_front_only() {
         assert_eq!(sample.is_some(), front, "from {from}");
     }
     // A one-sided sphere seen from inside shows its back: nothing.
-    let sphere = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
+    let sphere = ShapeGeometry::Sphere(lumis_core::geometry::Sphere {
         center: Vec3::ZERO,
         radius: 1.0,
     });
@@ -233,7 +233,7 @@ fn edge_on_hits_have_zero_density() {
 #[test]
 fn sphere_light_density_is_that_of_its_cone() {
     let radius = 0.5f32;
-    let sphere = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
+    let sphere = ShapeGeometry::Sphere(lumis_core::geometry::Sphere {
         center: Vec3::new(1.0, 2.0, -1.0),
         radius,
     });
@@ -286,7 +286,7 @@ fn degenerate_configurations_give_no_sample() {
             );
         }
     }
-    let speck = ShapeGeometry::Sphere(lumis_core::scene::shapes::Sphere {
+    let speck = ShapeGeometry::Sphere(lumis_core::geometry::Sphere {
         center: Vec3::ZERO,
         radius: 1e-20,
     });
@@ -332,7 +332,7 @@ fn scale_multiplies_the_radiance() {
 /// ray's end (10⁻⁷ of its size) can exceed what is left by the ray's stopping 10⁻⁴ of its length
 /// short, which is no geometry, and rays that skip the shape are spared it too.
 fn samples_blocked_by_own_shape(light: &dyn Emitter, shape: &ShapeGeometry) -> (usize, usize) {
-    use lumis_core::accel::SHADOW_EPSILON;
+    use lumis_core::geometry::SHADOW_EPSILON;
     let geometry = Geometry::new(vec![shape.clone()]);
     let mut sampler = lumis_core::sampler::Sampler::new(17, 0, 0);
     let (mut blocked, mut drawn) = (0, 0);
@@ -382,7 +382,7 @@ fn samples_blocked_by_own_shape(light: &dyn Emitter, shape: &ShapeGeometry) -> (
 /// two-sided cube's samples on faces turned away are blocked by the faces in front.
 #[test]
 fn shapes_declared_never_to_block_their_samples_do_not() {
-    let turned = shapes::transform_matrix(&TransformDescription {
+    let turned = transform_matrix(&TransformDescription {
         rotate: vec![RotationDescription {
             axis: [0.3, 1.0, 0.7],
             angle: 37.0,
@@ -393,17 +393,17 @@ fn shapes_declared_never_to_block_their_samples_do_not() {
     })
     .unwrap();
     let never_blocking = [
-        ShapeGeometry::Sphere(shapes::Sphere {
+        ShapeGeometry::Sphere(geometry::Sphere {
             center: Vec3::new(0.2, -0.1, 0.3),
             radius: 1.3,
         }),
-        ShapeGeometry::Sphere(shapes::Sphere {
+        ShapeGeometry::Sphere(geometry::Sphere {
             center: Vec3::new(1.0, 2.0, -0.5),
             radius: 0.01,
         }),
-        ShapeGeometry::Mesh(shapes::rectangle()),
-        ShapeGeometry::Mesh(shapes::rectangle().transformed(&turned)),
-        ShapeGeometry::Mesh(shapes::disk(24).transformed(&turned)),
+        ShapeGeometry::Mesh(geometry::rectangle()),
+        ShapeGeometry::Mesh(geometry::rectangle().transformed(&turned)),
+        ShapeGeometry::Mesh(geometry::disk(24).transformed(&turned)),
     ];
     for shape in &never_blocking {
         let light = area_light(shape, "\"radiance\": 1, \"two_sided\": true");
@@ -414,7 +414,7 @@ fn shapes_declared_never_to_block_their_samples_do_not() {
         assert!(drawn > 3000, "{drawn} samples of {shape:?}");
         assert_eq!(blocked, 0, "of {drawn} samples of {shape:?}");
     }
-    for folded in [shapes::cube(), shapes::cube().transformed(&turned)] {
+    for folded in [geometry::cube(), geometry::cube().transformed(&turned)] {
         let shape = ShapeGeometry::Mesh(folded);
         let light = area_light(&shape, "\"radiance\": 1, \"two_sided\": true");
         assert!(!light.own_shape_never_blocks_samples());

@@ -5,9 +5,9 @@
 
 use glam::{Vec2, Vec3};
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, ReferencePoint};
+use lumis_core::geometry::{self, ShapeGeometry};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, EmitterPlugin};
-use lumis_core::scene::shapes::{self, ShapeGeometry};
 use std::sync::Arc;
 
 fn emitter(kind: &str, params: &str, shape: Option<&ShapeGeometry>) -> Arc<dyn Emitter> {
@@ -51,7 +51,7 @@ fn delta_lights_are_flagged_and_reached_by_no_ray() {
             }
         }
     }
-    let square = ShapeGeometry::Mesh(shapes::rectangle());
+    let square = ShapeGeometry::Mesh(geometry::rectangle());
     assert!(!emitter("area", "\"radiance\": 1", Some(&square)).is_delta());
     assert!(!emitter("envmap", "\"file\": \"scenes/envmaps/studio.exr\"", None).is_delta());
 }

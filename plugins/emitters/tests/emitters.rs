@@ -3,16 +3,15 @@
 //! against analytic values.
 
 use glam::{Vec2, Vec3};
-use lumis_core::accel::{Geometry, Ray};
 use lumis_core::chi2::{
     Chi2Test, FAMILY_FALSE_ALARM, binomial_limit, run_side_by_side, sidak, test_sampler, z_limit,
 };
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, ReferencePoint};
+use lumis_core::geometry::{self, Geometry, Ray, ShapeGeometry, Sphere};
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::{MAX_WIDTH, limit_width};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, EmitterPlugin};
-use lumis_core::scene::shapes::{self, ShapeGeometry, Sphere};
 use lumis_emitters::envmap::EnvironmentMap;
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -73,7 +72,7 @@ fn square_light() -> ShapeLight {
 /// An `area` light with `params` on the 2 x 2 square in the plane y = 0, two triangles sharing a
 /// diagonal (the rectangle, which faces +z, turned by 90° about x).
 fn light_on_square(params: &str) -> ShapeLight {
-    let m = lumis_core::scene::shapes::transform_matrix(
+    let m = lumis_core::scene::transform::transform_matrix(
         &lumis_core::scene::description::TransformDescription {
             rotate: vec![lumis_core::scene::description::RotationDescription {
                 axis: [1.0, 0.0, 0.0],
@@ -84,7 +83,7 @@ fn light_on_square(params: &str) -> ShapeLight {
     )
     .unwrap();
     ShapeLight::new(
-        ShapeGeometry::Mesh(shapes::rectangle().transformed(&m)),
+        ShapeGeometry::Mesh(geometry::rectangle().transformed(&m)),
         params,
     )
 }
@@ -546,7 +545,7 @@ fn light_on_triangles(params: &str) -> ShapeLight {
             Vec3::new(0.0, 2.0, 1.0),
         ],
     ];
-    let mesh = shapes::Mesh {
+    let mesh = geometry::Mesh {
         positions: triangles.iter().flatten().copied().collect(),
         normals: None,
         indices: (0..triangles.len() as u32)

@@ -13,7 +13,7 @@ use crate::moments::PilotSamples;
 use crate::phase::{LightEstimate, Observer, PhaseRole, SampleSplit};
 use crate::sampling::LightSampling;
 use crate::weighting::Weighting;
-use lumis_core::accel::PACKET_SIZE;
+use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::math::Rgb;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::scene::Scene;

@@ -15,9 +15,9 @@
 use crate::batch::BatchScratch;
 use crate::shading_point::ShadingPoint;
 use glam::Vec3;
-use lumis_core::accel::{FirstHit, Intersection, Ray};
 use lumis_core::bsdf::BsdfSample;
 use lumis_core::emitter::{Emitter, EmitterHit, EmitterSample, ReferencePoint};
+use lumis_core::geometry::{FirstHit, Intersection, Ray};
 use lumis_core::math::Rgb;
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;

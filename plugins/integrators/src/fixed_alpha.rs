@@ -5,7 +5,7 @@ use crate::allocation::{Allocation, estimate_each};
 use crate::phase::{LightEstimate, PhaseRole, SampleSplit};
 use crate::sampling::LightSampling;
 use crate::weighting::Weighting;
-use lumis_core::accel::PACKET_SIZE;
+use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::widest_width;
 

@@ -11,7 +11,7 @@ use crate::estimator::{emitted, estimate_delta_light};
 use crate::phase::LightEstimate;
 use crate::sampling::{LightSampling, PhaseBuffers};
 use crate::shading_point::ShadingPoint;
-use lumis_core::accel::PACKET_SIZE;
+use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;

@@ -2,9 +2,9 @@
 //! ([`crate::estimator`]) draws each light's samples.
 
 use glam::Vec3;
-use lumis_core::accel::{Intersection, RayOrigin};
 use lumis_core::bsdf::Bsdf;
 use lumis_core::emitter::EmitterSample;
+use lumis_core::geometry::{Intersection, RayOrigin};
 use lumis_core::math::{Frame, Rgb};
 use lumis_core::scene::Scene;
 

@@ -37,7 +37,7 @@ mod tests {
         .map(String::from)
         .to_vec();
         overrides.extend(integrator.iter().map(|s| format!("integrator.{s}")));
-        let mut loaded = lumis_core::scene::load_scene(&scene, &overrides)
+        let mut loaded = lumis_core::scene::load::load_scene(&scene, &overrides)
             .unwrap_or_else(|e| panic!("{integrator:?}: {e}"));
         (first..first + RUNS)
             .map(|seed| {

@@ -1,18 +1,18 @@
-//! Building the BVH that [`crate::accel::Geometry`] traverses, on any input: a binary BVH
-//! (obvhs's PLOC, or binned SAH below) collapsed into [`WideBvh`]'s 8-wide nodes.
+//! Building the BVH on any input: a binary BVH (obvhs's PLOC, or binned SAH below) collapsed
+//! into [`WideBvh`]'s 8-wide nodes.
 //!
 //! obvhs's PLOC builder gives good trees fast on ordinary meshes, but on heavily overlapping
 //! primitives (a fan of thin triangles sharing a vertex, as in a disk or a cylinder cap) it makes
 //! trees whose depth grows linearly with the primitive count, in time that grows about
 //! quadratically (a 65 536-triangle fan: depth 101, 17 s; 262 144: minutes). The traversal
-//! ([`crate::wide_bvh`]) has a fixed stack sized for trees shallower than 32 levels, as obvhs's
+//! ([`super::traverse`]) has a fixed stack sized for trees shallower than 32 levels, as obvhs's
 //! own (which silently drops nodes past it in release builds). So:
 //! - inputs whose primitive boxes overlap far more than a surface's do are built top-down with
 //!   binned SAH, whose depth is bounded (below);
 //! - every PLOC tree's depth is measured, and one as deep as the traversal stack is rebuilt the
 //!   same way.
 
-use crate::wide_bvh::WideBvh;
+use super::{EMPTY, LEAF, MAX_LEAF_PRIMITIVES, TRAVERSAL_STACK_SIZE, WideBvh, WideNode};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
@@ -20,10 +20,6 @@ use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::ploc::PlocBuilder;
 use rayon::prelude::*;
-
-/// Trees must be shallower than this: the traversal's stack ([`crate::wide_bvh`]) is sized for
-/// it (as obvhs's, `cwbvh::TRAVERSAL_STACK_SIZE`).
-pub(crate) const TRAVERSAL_STACK_SIZE: usize = 32;
 
 /// Depth the top-down builder keeps its BVH2 within (the 8-wide tree is never deeper than the
 /// BVH2 it collapses), leaving a margin below [`TRAVERSAL_STACK_SIZE`].
@@ -43,32 +39,136 @@ pub enum Builder {
     BinnedSah,
 }
 
-/// Builds the 8-wide BVH over primitives with the boxes `exact` (obvhs builds on the boxes ×
-/// `scale`, a power of two); its depth is below [`TRAVERSAL_STACK_SIZE`]. Returns it, the
-/// primitives' leaf order (leaf slot `j` holds primitive `order[j]`) and the builder used.
-pub fn build(exact: &[Aabb], scale: f32) -> (WideBvh, Vec<u32>, Builder) {
-    let scaled: Vec<Aabb> = exact
-        .par_iter()
-        .map(|b| Aabb::new(b.min * scale, b.max * scale))
-        .collect();
-    if !heavily_overlapping(&scaled) {
-        // obvhs's `medium_build` preset without its conversion to a compressed CWBVH.
-        let params = BvhBuildParams::medium_build();
-        let mut bvh2 = PlocBuilder::with_capacity(scaled.len()).build(
-            params.ploc_search_distance,
-            &scaled,
-            (0..scaled.len() as u32).collect(),
-            params.sort_precision,
-            params.search_depth_threshold,
+impl WideBvh {
+    /// Builds the 8-wide BVH over primitives with the boxes `exact` (obvhs builds on the boxes ×
+    /// `scale`, a power of two); its depth is below [`TRAVERSAL_STACK_SIZE`]. Returns it, the
+    /// primitives' leaf order (leaf slot `j` holds primitive `order[j]`) and the builder used.
+    pub fn build(exact: &[Aabb], scale: f32) -> (WideBvh, Vec<u32>, Builder) {
+        let scaled: Vec<Aabb> = exact
+            .par_iter()
+            .map(|b| Aabb::new(b.min * scale, b.max * scale))
+            .collect();
+        if !heavily_overlapping(&scaled) {
+            // obvhs's `medium_build` preset without its conversion to a compressed CWBVH.
+            let params = BvhBuildParams::medium_build();
+            let mut bvh2 = PlocBuilder::with_capacity(scaled.len()).build(
+                params.ploc_search_distance,
+                &scaled,
+                (0..scaled.len() as u32).collect(),
+                params.sort_precision,
+                params.search_depth_threshold,
+            );
+            ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+            let (bvh, order, depth) = WideBvh::collapse(&bvh2, exact);
+            if depth < TRAVERSAL_STACK_SIZE {
+                return (bvh, order, Builder::Ploc);
+            }
+        }
+        let (bvh, order, _) = WideBvh::collapse(&binned_sah_bvh2(&scaled), exact);
+        (bvh, order, Builder::BinnedSah)
+    }
+
+    /// Collapses `bvh2` (one primitive per leaf, as both builders above make)
+    /// into 8-wide nodes, largest child first: each node starts from one BVH2 node and opens
+    /// the child of largest surface area among its inner BVH2 nodes until it has 8 children
+    /// (Wald, Benthin and Boulos 2008). Children with at most [`MAX_LEAF_PRIMITIVES`]
+    /// primitives become leaves. `exact[p]` is the box of primitive `p` in the space rays are
+    /// given in (not necessarily `bvh2`'s, whose boxes only rank children): the nodes hold
+    /// unions of those exact boxes. Returns the tree, the primitives' leaf order and the tree's
+    /// depth (levels of nodes).
+    ///
+    /// The root's inner children are collapsed in parallel, each into a tree of its own, and
+    /// the trees are then laid out one after the other: the result does not depend on the
+    /// number of threads.
+    fn collapse(bvh2: &Bvh2, exact: &[Aabb]) -> (Self, Vec<u32>, usize) {
+        use rayon::prelude::*;
+        if bvh2.nodes.is_empty() {
+            return (WideBvh::default(), Vec::new(), 0);
+        }
+        let mut root = WideNode::EMPTY;
+        let mut order = Vec::with_capacity(exact.len());
+        let mut scratch = Vec::new();
+        let mut inner = Vec::new();
+        let (children, count) = widest_first_children(bvh2, 0);
+        for (slot, &child) in children[..count].iter().enumerate() {
+            if !root.try_leaf(slot, bvh2, child, exact, &mut scratch, &mut order) {
+                inner.push((slot, child));
+            }
+        }
+        let parts: Vec<_> = inner
+            .par_iter()
+            .map(|&(_, child)| collapse_subtree(bvh2, child, exact))
+            .collect();
+        let mut nodes = crate::huge_pages::vec_with_capacity(
+            1 + parts.iter().map(|p| p.nodes.len()).sum::<usize>(),
         );
-        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
-        let (bvh, order, depth) = WideBvh::collapse(&bvh2, exact);
-        if depth < TRAVERSAL_STACK_SIZE {
-            return (bvh, order, Builder::Ploc);
+        nodes.push(root);
+        let mut deepest = 1;
+        for (&(slot, _), part) in inner.iter().zip(parts) {
+            let (node_offset, order_offset) = (nodes.len() as u32, order.len() as u32);
+            nodes[0].child[slot] = node_offset;
+            nodes[0].set_child_bounds(slot, &part.nodes[0].bounds());
+            nodes.extend(part.nodes.into_iter().map(|mut node| {
+                for child in node.child.iter_mut().filter(|c| **c != EMPTY) {
+                    *child += if *child & LEAF != 0 {
+                        order_offset
+                    } else {
+                        node_offset
+                    };
+                }
+                node
+            }));
+            order.extend_from_slice(&part.order);
+            deepest = deepest.max(1 + part.depth);
+        }
+        (WideBvh { nodes }, order, deepest)
+    }
+}
+
+impl WideNode {
+    /// The union of the children's boxes.
+    fn bounds(&self) -> Aabb {
+        let min = |a: &[f32; 8]| a.iter().copied().fold(f32::INFINITY, f32::min);
+        let max = |a: &[f32; 8]| a.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let b = &self.bounds;
+        Aabb::new(
+            glam::Vec3A::new(min(&b[0]), min(&b[2]), min(&b[4])),
+            glam::Vec3A::new(max(&b[1]), max(&b[3]), max(&b[5])),
+        )
+    }
+
+    /// Makes slot `slot` a leaf of the primitives under BVH2 node `child` (appended to
+    /// `order`, their exact boxes' union as its box) if there are at most
+    /// [`MAX_LEAF_PRIMITIVES`] of them; otherwise leaves the slot and returns false.
+    fn try_leaf(
+        &mut self,
+        slot: usize,
+        bvh2: &Bvh2,
+        child: u32,
+        exact: &[Aabb],
+        scratch: &mut Vec<u32>,
+        order: &mut Vec<u32>,
+    ) -> bool {
+        let Some(primitives) = small_subtree(bvh2, child, scratch) else {
+            return false;
+        };
+        self.child[slot] = LEAF | order.len() as u32;
+        self.count[slot] = primitives as u8;
+        let first = order.len();
+        leaf_primitives(bvh2, child, scratch, order);
+        let bounds = order[first..]
+            .iter()
+            .fold(Aabb::empty(), |b, &p| b.union(&exact[p as usize]));
+        self.set_child_bounds(slot, &bounds);
+        true
+    }
+
+    fn set_child_bounds(&mut self, slot: usize, bounds: &Aabb) {
+        for axis in 0..3 {
+            self.bounds[2 * axis][slot] = bounds.min[axis];
+            self.bounds[2 * axis + 1][slot] = bounds.max[axis];
         }
     }
-    let (bvh, order, _) = WideBvh::collapse(&binned_sah_bvh2(&scaled), exact);
-    (bvh, order, Builder::BinnedSah)
 }
 
 fn heavily_overlapping(aabbs: &[Aabb]) -> bool {
@@ -222,6 +322,114 @@ fn median_split(range: &mut [u32], centroids: &[[f32; 3]]) -> usize {
     mid
 }
 
+/// The 8-wide tree over one BVH2 subtree: its root is node 0, its leaves index `order`.
+struct Subtree {
+    nodes: Vec<WideNode>,
+    order: Vec<u32>,
+    depth: usize,
+}
+
+/// Up to 8 BVH2 nodes covering the subtree of `source`: starting from it, the inner node of
+/// largest surface area is replaced by its two children until there are 8 or only leaves.
+fn widest_first_children(bvh2: &Bvh2, source: u32) -> ([u32; 8], usize) {
+    let mut children = [source; 8];
+    let mut count = 1;
+    while count < 8 {
+        let mut widest: Option<(usize, f32)> = None;
+        for (slot, &child) in children[..count].iter().enumerate() {
+            let node = &bvh2.nodes[child as usize];
+            let area = node.aabb().half_area();
+            if !node.is_leaf() && widest.is_none_or(|(_, a)| area > a) {
+                widest = Some((slot, area));
+            }
+        }
+        let Some((slot, _)) = widest else { break };
+        let first = bvh2.nodes[children[slot] as usize].first_index;
+        children[slot] = first;
+        children[count] = first + 1;
+        count += 1;
+    }
+    (children, count)
+}
+
+/// Collapses the subtree of BVH2 node `source` (see [`WideBvh::collapse`]).
+fn collapse_subtree(bvh2: &Bvh2, source: u32, exact: &[Aabb]) -> Subtree {
+    let mut nodes = vec![WideNode::EMPTY];
+    // Where each node's box goes in its parent: (parent, slot); the root has none.
+    let mut slot_in_parent = vec![(0u32, 0u8)];
+    let mut order = Vec::new();
+    let mut depth = 0;
+    // (wide node, the BVH2 node it stands for, its level)
+    let mut work = vec![(0u32, source, 1usize)];
+    let mut scratch = Vec::new();
+    while let Some((wide, source, level)) = work.pop() {
+        depth = depth.max(level);
+        let (children, count) = widest_first_children(bvh2, source);
+        let mut node = WideNode::EMPTY;
+        for (slot, &child) in children[..count].iter().enumerate() {
+            if !node.try_leaf(slot, bvh2, child, exact, &mut scratch, &mut order) {
+                node.child[slot] = nodes.len() as u32;
+                work.push((nodes.len() as u32, child, level + 1));
+                slot_in_parent.push((wide, slot as u8));
+                nodes.push(WideNode::EMPTY);
+            }
+        }
+        nodes[wide as usize] = node;
+    }
+    // A node comes after its parent: filling boxes from the last node up gives every inner
+    // child its box before its parent's box is read.
+    for index in (1..nodes.len()).rev() {
+        let bounds = nodes[index].bounds();
+        let (parent, slot) = slot_in_parent[index];
+        nodes[parent as usize].set_child_bounds(slot as usize, &bounds);
+    }
+    Subtree {
+        nodes,
+        order,
+        depth,
+    }
+}
+
+/// The number of primitives under BVH2 node `node` if it is at most [`MAX_LEAF_PRIMITIVES`],
+/// found by visiting at most that many leaves and one fewer inner nodes. `stack` is scratch.
+fn small_subtree(bvh2: &Bvh2, node: u32, stack: &mut Vec<u32>) -> Option<u32> {
+    stack.clear();
+    stack.push(node);
+    let (mut primitives, mut inner) = (0, 0);
+    while let Some(n) = stack.pop() {
+        let n = &bvh2.nodes[n as usize];
+        if n.is_leaf() {
+            primitives += n.prim_count;
+            if primitives > MAX_LEAF_PRIMITIVES {
+                return None;
+            }
+        } else {
+            inner += 1;
+            if inner >= MAX_LEAF_PRIMITIVES {
+                return None;
+            }
+            stack.extend([n.first_index + 1, n.first_index]);
+        }
+    }
+    Some(primitives)
+}
+
+/// Appends the primitives under BVH2 node `node` to `order`, left to right. `stack` is scratch.
+fn leaf_primitives(bvh2: &Bvh2, node: u32, stack: &mut Vec<u32>, order: &mut Vec<u32>) {
+    stack.clear();
+    stack.push(node);
+    while let Some(n) = stack.pop() {
+        let n = &bvh2.nodes[n as usize];
+        if n.is_leaf() {
+            let first = n.first_index as usize;
+            order.extend_from_slice(&bvh2.primitive_indices[first..first + n.prim_count as usize]);
+        } else {
+            // Right pushed first: leaves come out left to right.
+            stack.extend([n.first_index + 1, n.first_index]);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -261,7 +469,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            pool.install(|| build(&boxes, 1.0))
+            pool.install(|| WideBvh::build(&boxes, 1.0))
         };
         let (bvh, order, builder) = build_with(1);
         assert_eq!(builder, Builder::Ploc);
@@ -280,7 +488,7 @@ mod tests {
         // PLOC: depth 46 at 16 384 triangles, 101 at 65 536 (about 17 s).
         for n in [4096, 65536] {
             let start = std::time::Instant::now();
-            let (bvh, order, builder) = build(&fan(n), 1.0);
+            let (bvh, order, builder) = WideBvh::build(&fan(n), 1.0);
             assert_eq!(builder, Builder::BinnedSah, "{n}");
             assert!(bvh.depth() < TRAVERSAL_STACK_SIZE, "{n}: {}", bvh.depth());
             assert_eq!(order.len(), n);
@@ -324,7 +532,7 @@ mod tests {
                 );
             }
         }
-        let (bvh, _, builder) = build(&tris, 1.0);
+        let (bvh, _, builder) = WideBvh::build(&tris, 1.0);
         assert_eq!(builder, Builder::Ploc);
         assert!(bvh.depth() < TRAVERSAL_STACK_SIZE);
     }
