@@ -21,5 +21,6 @@ pub mod render;
 pub mod render_files;
 pub mod sampler;
 pub mod scene;
+pub mod texture;
 
 pub use inventory;

@@ -9,6 +9,7 @@ use super::primitive::Primitive;
 use super::ray::{Intersection, Ray, read_coordinates};
 use super::shapes::{ShapeGeometry, unit_normal_a, unit_normals_a};
 use super::triangle::RayShear;
+use super::uv::UvMapping;
 use crate::limits::MAX_COORDINATE;
 use crate::math::gamma;
 use glam::{Vec3, Vec3A};
@@ -53,13 +54,15 @@ pub const BVH_BYTES_PER_PRIMITIVE: u64 = 320;
 
 /// The scene's surfaces and the BVH over them.
 pub struct Geometry {
-    shapes: Vec<ShapeGeometry>,
+    pub(super) shapes: Vec<ShapeGeometry>,
     /// Primitives in BVH leaf order.
     primitives: Vec<Primitive>,
     bvh: WideBvh,
     /// Per shape: its bounding box, padded for [`Geometry::may_meet`] (empty for a shape with no
     /// primitive).
     shape_boxes: Vec<[Vec3; 2]>,
+    /// Per shape: how its points map to texture coordinates ([`Geometry::uv`]).
+    pub(super) uv_mappings: Vec<UvMapping>,
 }
 
 /// Size (largest extent) the scene has in the BVH's space, a power of two.
@@ -139,6 +142,7 @@ impl Geometry {
         let mut primitives = crate::huge_pages::vec_with_capacity(order.len());
         primitives.par_extend(order.par_iter().map(|&i| prims[i as usize]));
         Geometry {
+            uv_mappings: vec![UvMapping::Intrinsic; shapes.len()],
             shapes,
             primitives,
             bvh,

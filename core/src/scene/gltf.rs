@@ -362,6 +362,7 @@ fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Vec<(Option<usize>, 
                 positions,
                 normals,
                 indices: triangles,
+                uvs: None,
             },
         ));
     }

@@ -3,10 +3,11 @@
 
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;
+use super::references::SceneReferences;
 use super::shape_check::check_shape;
 use super::transform::transform_matrix;
 use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply};
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Absorber, Bsdf, BsdfFlags};
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::{SceneError, did_you_mean};
 use crate::geometry::{self, Geometry, Mesh, ShapeGeometry, Sphere};
@@ -136,20 +137,21 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     }
     let camera = gltf_scene::build_camera(&desc.camera, path, base, film.width, film.height)?;
 
-    // BSDFs, by name.
+    // BSDFs, by name (with the textures and BSDFs they refer to).
+    let references = SceneReferences::new(base, desc.bsdfs.clone());
     let mut bsdf_names = Vec::new();
     let mut bsdfs: Vec<Arc<dyn Bsdf>> = Vec::new();
-    for (name, spec) in &desc.bsdfs {
-        let plugin = registry::find::<BsdfPlugin>(&spec.kind)
-            .map_err(|e| err(format!("bsdf `{name}`: {e}")))?;
-        let mut params = plugin_params(name, "bsdf", spec, plugin.params)
-            .map_err(err)?
-            .with_base_dir(base);
-        let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
-        params.finish().map_err(|e| err(e.to_string()))?;
+    let mut bsdf_flags = Vec::new();
+    let mut one_sided = Vec::new();
+    for name in desc.bsdfs.keys() {
+        let built = references.named_bsdf(name).map_err(err)?;
         bsdf_names.push(name.as_str());
-        bsdfs.push(bsdf);
+        bsdfs.push(built.bsdf);
+        bsdf_flags.push(built.flags);
+        one_sided.push(built.one_sided);
     }
+    // The back of the one-sided BSDFs, added once if a shape uses one.
+    let mut absorber = None;
 
     // Shapes, with their area emitters.
     let mut geometries = Vec::new();
@@ -194,6 +196,8 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                         plugin_params(&name, "bsdf", &spec, plugin.params).map_err(err)?;
                     let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
                     params.finish().map_err(|e| err(e.to_string()))?;
+                    bsdf_flags.push(bsdf.flags());
+                    one_sided.push(false);
                     bsdfs.push(bsdf);
                     parts.push((bsdfs.len() - 1, geometry));
                 }
@@ -206,7 +210,17 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             {
                 emitting_triangles += mesh.indices.len() as u64;
             }
-            shape_bsdf.push(bsdf as u32);
+            let back = if one_sided[bsdf] {
+                *absorber.get_or_insert_with(|| {
+                    bsdfs.push(Arc::new(Absorber));
+                    bsdf_flags.push(BsdfFlags::NONE);
+                    one_sided.push(false);
+                    bsdfs.len() - 1
+                })
+            } else {
+                bsdf
+            };
+            shape_bsdf.push([bsdf as u32, back as u32]);
             shape_emitter.push(match &shape.emitter {
                 None => None,
                 Some(spec) => {
@@ -287,6 +301,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         seed: desc.sampler.seed,
         geometry: Geometry::new(geometries),
         bsdfs,
+        bsdf_flags,
         emitters,
         environment,
         shape_bsdf,

@@ -140,6 +140,7 @@ pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
         positions: Vec::new(),
         normals: every_corner_has_a_normal.then(Vec::new),
         indices: Vec::with_capacity(triangles.len()),
+        uvs: None,
     };
     for triangle in &triangles {
         let mut t = [0u32; 3];

@@ -298,6 +298,7 @@ pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
         positions,
         normals,
         indices,
+        uvs: None,
     })
 }
 
