@@ -7,7 +7,7 @@ use crate::film::Film;
 use crate::math::Rgb;
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, IntegerBounds, Layer,
-    LayerAttributes, ReadChannels, ReadLayers, Text, Vec2, WritableImage,
+    LayerAttributes, LineOrder, ReadChannels, ReadLayers, Text, Vec2, WritableImage,
     read_all_flat_layers_from_file,
 };
 use std::io::Write as _;
@@ -204,10 +204,17 @@ fn exr_image(film: &Film, metadata: &Metadata) -> Image<Layer<AnyChannels<FlatSa
             AttributeValue::Text(Text::from(text.as_str())),
         );
     }
+    // Blocks are compressed in parallel and written in increasing order: with the crate's
+    // default (unspecified order) they are written as they finish, so the chunk table, and the
+    // file's bytes, would depend on the threads' timing.
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
     let layer = Layer::new(
         size,
         attributes,
-        Encoding::FAST_LOSSLESS,
+        encoding,
         AnyChannels::sort(channels.into()),
     );
     let mut image = Image::from_layer(layer);
