@@ -132,8 +132,11 @@ fn exr_has_colour_channels_metadata_and_crop_window() {
     ] {
         assert!(text.contains(line), "{line:?} missing from {text}");
     }
-    let png = image::open(dir.path().join("scene.png")).unwrap();
-    assert_eq!((png.width(), png.height()), (8, 6));
+    let png = common::read_png(&dir.path().join("scene.png"));
+    assert_eq!(
+        (png.width, png.height, png.color),
+        (8, 6, png::ColorType::Rgb)
+    );
 }
 
 /// Renders an 8×8 image of (nearly) one floor point and returns the mean and its standard error,
@@ -716,7 +719,7 @@ fn interrupted_render_writes_a_partial_image_and_fails() {
         red.iter().any(|v| *v > 0.0),
         "the finished pixels are missing"
     );
-    assert!(image::open(dir.path().join("cut.png")).is_ok());
+    common::read_png(&dir.path().join("cut.png"));
     assert!(
         std::fs::read_dir(dir.path()).unwrap().all(|e| !e
             .unwrap()

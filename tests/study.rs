@@ -276,14 +276,14 @@ fn reduced_study_has_curves_trade_and_intervals_on_every_ratio_and_writes_only_i
             format!("panels/{scene}.png"),
         ] {
             assert!(md.contains(&format!("(out/{file})")), "{file} linked");
-            let image = image::open(out.join(&file)).expect("a readable PNG");
-            assert!(image.width() > 48, "{file}");
+            let image = common::read_png(&out.join(&file));
+            assert!(image.width > 48, "{file}");
         }
     }
     for plot in ["summary", "clamp", "m", "convergence"] {
         let file = format!("plots/{plot}.png");
         assert!(md.contains(&format!("(out/{file})")), "{file} linked");
-        image::open(out.join(&file)).expect("a readable PNG");
+        common::read_png(&out.join(&file));
     }
 
     // The references are cached in the cache directory, one per scene; nothing is written

@@ -96,6 +96,38 @@ pub fn example_library() -> &'static Path {
     })
 }
 
+/// A PNG file, decoded.
+pub struct Png {
+    pub width: u32,
+    pub height: u32,
+    pub color: png::ColorType,
+    pub bytes: Vec<u8>,
+}
+
+/// Decodes the PNG at `path` whole; panics, naming the file, if it is not a complete PNG.
+pub fn read_png(path: &Path) -> Png {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut bytes = vec![
+        0;
+        reader
+            .output_buffer_size()
+            .expect("a PNG that fits in memory")
+    ];
+    let frame = reader
+        .next_frame(&mut bytes)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    bytes.truncate(frame.buffer_size());
+    Png {
+        width: frame.width,
+        height: frame.height,
+        color: frame.color_type,
+        bytes,
+    }
+}
+
 /// Mean of independent estimates and its standard error (from their sample variance).
 pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
     let n = values.len() as f64;
