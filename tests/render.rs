@@ -389,9 +389,6 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
         }
         generate_assets(&path, &scenes);
         let text = std::fs::read_to_string(&path).unwrap();
-        if text.contains("plugins:") {
-            example_library();
-        }
         let every_aov = format!("integrator.aovs={:?}", lumis::integrators::aovs::NAMES);
         // The scene is built once (its meshes, BVH and maps took most of this test's time when
         // it was rebuilt for every integrator); each integrator is built from the description
@@ -427,9 +424,10 @@ fn every_bundled_scene_renders_finite_values_with_every_integrator() {
 }
 
 /// `scenes/` rebuilt in a temporary directory as `scenes/` from links to its files (`paper/` a
-/// real folder of links, so that its `../` paths stay inside the copy; `target` beside it, where
-/// the plugin scene finds its library): the assets that scenes generate land there, never in the
-/// source tree.
+/// real folder of links, so that its `../` paths stay inside the copy): the assets that scenes
+/// generate land there, never in the source tree. Beside it, `target/debug/` holds a link to the
+/// example plugin library, where `scenes/plugin.ron` looks for it, wherever cargo's target
+/// directory is.
 fn scenes_mirror() -> tempfile::TempDir {
     fn link_entries(from: &Path, to: &Path) {
         for entry in std::fs::read_dir(from).unwrap() {
@@ -444,7 +442,10 @@ fn scenes_mirror() -> tempfile::TempDir {
         }
     }
     let mirror = tempfile::tempdir().unwrap();
-    std::os::unix::fs::symlink(repo_path("target"), mirror.path().join("target")).unwrap();
+    let debug = mirror.path().join("target/debug");
+    std::fs::create_dir_all(&debug).unwrap();
+    let library = example_library();
+    std::os::unix::fs::symlink(library, debug.join(library.file_name().unwrap())).unwrap();
     std::fs::create_dir(mirror.path().join("scenes")).unwrap();
     link_entries(&repo_path("scenes"), &mirror.path().join("scenes"));
     mirror

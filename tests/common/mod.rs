@@ -62,9 +62,8 @@ pub fn integrators() -> Vec<&'static str> {
 }
 
 /// The example plugin library `lumis-oren-nayar`, which cargo builds with the tests (a
-/// dev-dependency, built with its cdylib beside this test's executable), placed where the
-/// bundled scene `scenes/plugin.ron` looks for it: `target/debug/liblumis_oren_nayar.so` on Linux
-/// (a hard link, or a copy, made once per test binary and renamed into place).
+/// dev-dependency, its cdylib beside this test's executable): found from the executable's own
+/// path, wherever the target directory is (`CARGO_TARGET_DIR`, `--target-dir`).
 pub fn example_library() -> &'static Path {
     static LIBRARY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     LIBRARY.get_or_init(|| {
@@ -73,26 +72,15 @@ pub fn example_library() -> &'static Path {
             std::env::consts::DLL_PREFIX,
             std::env::consts::DLL_SUFFIX
         );
-        // target/<profile>/deps/<this test>: the library is in the same directory.
-        let exe = std::env::current_exe().unwrap();
-        let deps = exe.parent().unwrap();
-        let built = deps.join(&file);
+        // <target dir>/<profile>/deps/<this test>: the library is in the same directory.
+        let exe = std::env::current_exe().expect("the test executable's path");
+        let built = exe.with_file_name(&file);
         assert!(
             built.exists(),
             "{} not built (it is a dev-dependency of lumis: `cargo test` builds it)",
             built.display()
         );
-        // target/debug, whatever profile the tests run under.
-        let target = deps.parent().unwrap().with_file_name("debug");
-        std::fs::create_dir_all(&target).unwrap();
-        let path = target.join(&file);
-        let tmp = target.join(format!(".{file}.{}.tmp", std::process::id()));
-        let _ = std::fs::remove_file(&tmp);
-        if std::fs::hard_link(&built, &tmp).is_err() {
-            std::fs::copy(&built, &tmp).unwrap();
-        }
-        std::fs::rename(&tmp, &path).unwrap();
-        path
+        built
     })
 }
 
