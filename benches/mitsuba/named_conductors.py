@@ -54,6 +54,7 @@ def to_srgb(wavelengths, values, cmf):
 def main():
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
+    mi.set_log_level(mi.LogLevel.Error)
     data = Path(mi.__file__).parent / "data" / "ior"
     grid = CIE_MIN + np.arange(STEPS) / (STEPS - 1) * (CIE_MAX - CIE_MIN)
     cmf = np.array([list(mi.cie1931_xyz(float(w))) for w in grid])

@@ -34,7 +34,7 @@ pub fn dielectric<L: Lanes>(cos_i: L, eta: L) -> (L, L, L, L) {
     // η = 1: nothing reflected; grazing incidence: everything (0/0 above).
     let matched = eta.eq(one);
     let r = L::select(matched, zero, L::select(cos_i_abs.eq(zero), one, r));
-    let cos_t = (-cos_t_abs).copysign(cos_i);
+    let cos_t = cos_t_abs.copysign(-cos_i);
     (r, L::select(cos_t2.lt(zero), zero, cos_t), eta_it, eta_ti)
 }
 
@@ -137,6 +137,11 @@ pub fn named_ior(name: &str) -> Result<f32, String> {
 /// channels clamped to 0. Printed by `benches/mitsuba/named_conductors.py`, which does the
 /// integral and checks every value against Mitsuba 3.9.1's own (within 1.2·10⁻⁷).
 pub const NAMED_CONDUCTORS: &[(&str, [f32; 3], [f32; 3])] = &[
+    (
+        "Ag",
+        [0.155276, 0.116728, 0.138388],
+        [4.82835, 3.12222, 2.1469],
+    ),
     ("Al", [1.6575, 0.880405, 0.521244], [9.22381, 6.2695, 4.837]),
     (
         "AlAs",
