@@ -6,9 +6,10 @@
 //!   (Mitsuba's default is Beckmann).
 //! - `alpha` (float or texture, default 0.1, in [0, 10]): the roughness α (the slopes' RMS for
 //!   Beckmann times √2, the GGX width); values below 10⁻⁴ are used as 10⁻⁴, as Mitsuba does.
-//! - `material` (string, default "none"), `eta` (rgb or texture, default (0, 0, 0)), `k` (rgb
-//!   or texture, default (1, 1, 1)), `specular_reflectance` (rgb or texture, default (1, 1, 1),
-//!   in [0, 1]): as `conductor`'s.
+//! - `material` (string, default "none"): as `conductor`'s.
+//! - `eta` (rgb or texture, default (0, 0, 0)): as `conductor`'s.
+//! - `k` (rgb or texture, default (1, 1, 1)): as `conductor`'s.
+//! - `specular_reflectance` (rgb or texture, default (1, 1, 1), in [0, 1]): as `conductor`'s.
 //!
 //! f(ωo, ωi) cos θi = F(ωo·h) D(h) G1(ωo) G1(ωi) / (4 cos θo), with Mitsuba's separable
 //! masking-shadowing, zero where either direction is below the surface or h faces away from

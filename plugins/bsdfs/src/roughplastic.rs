@@ -8,11 +8,12 @@
 //! - `alpha` (float, default 0.1, in [0, 10]): its roughness α, one value (the transmittance
 //!   table depends on it, as in Mitsuba, where it cannot be a texture either); below 10⁻⁴ used
 //!   as 10⁻⁴.
-//! - `int_ior` (float, default 1.49, in [0.01, 10]), `ext_ior` (float, default 1.000277, in
-//!   [0.01, 10]): the indices of refraction inside the coating and outside; they must differ.
-//! - `diffuse_reflectance` (rgb or texture, default (0.5, 0.5, 0.5), in [0, 1]),
-//!   `specular_reflectance` (rgb or texture, default (1, 1, 1), in [0, 1]), `nonlinear` (bool,
-//!   default false): as `plastic`'s.
+//! - `int_ior` (float, default 1.49, in [0.01, 10]): the index of refraction of the coating.
+//! - `ext_ior` (float, default 1.000277, in [0.01, 10]): the index outside; it must differ from
+//!   `int_ior`.
+//! - `diffuse_reflectance` (rgb or texture, default (0.5, 0.5, 0.5), in [0, 1]): as `plastic`'s.
+//! - `specular_reflectance` (rgb or texture, default (1, 1, 1), in [0, 1]): as `plastic`'s.
+//! - `nonlinear` (bool, default false): as `plastic`'s.
 //!
 //! With η = int_ior / ext_ior: f(ωo, ωi) cos θi = specular_reflectance · F(ωo·h) D(h) G1(ωo)
 //! G1(ωi) / (4 cos θo) + R / (1 − F_dr) · (1/η²) T(cos θo) T(cos θi) cos θi / π, where T(μ) is
