@@ -14,6 +14,7 @@ mod distributed;
 mod extremes;
 mod import;
 mod import_hostile;
+mod import_materials;
 mod integrators;
 mod one_point;
 mod render;
