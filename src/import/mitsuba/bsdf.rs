@@ -152,18 +152,18 @@ impl Converter {
         p: &mut Properties,
         mut spec: PluginSpec,
     ) -> Result<Option<PluginSpec>, String> {
-        if let Some((material, l)) = p.string("material")? {
-            if material != conductor::NONE {
-                if let Err(e) = fresnel::named_conductor(&material) {
-                    self.problem(l, e);
-                    return Ok(None);
-                }
-                if p.has("eta") || p.has("k") {
-                    self.problem(l, "a conductor with both `material` and `eta` or `k`");
-                    return Ok(None);
-                }
-                spec = spec.string(conductor::MATERIAL, material);
+        if let Some((material, l)) = p.string("material")?
+            && material != conductor::NONE
+        {
+            if let Err(e) = fresnel::named_conductor(&material) {
+                self.problem(l, e);
+                return Ok(None);
             }
+            if p.has("eta") || p.has("k") {
+                self.problem(l, "a conductor with both `material` and `eta` or `k`");
+                return Ok(None);
+            }
+            spec = spec.string(conductor::MATERIAL, material);
         }
         for (name, default, lumis) in [
             ("eta", 0.0, conductor::ETA),
