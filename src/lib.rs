@@ -76,4 +76,9 @@ pub mod fuzzing {
     pub fn exr(data: &[u8]) -> bool {
         crate::image_io::decode_exr_rgb(data).is_ok()
     }
+
+    /// Decodes a texture image (PNG, JPEG or EXR, by its first bytes) as `bitmap` does.
+    pub fn texture(data: &[u8]) -> bool {
+        lumis_textures::bitmap::Image::decode(data, false).is_ok()
+    }
 }

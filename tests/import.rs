@@ -550,7 +550,7 @@ fn a_mitsuba_scene_converts_and_renders() {
     let ron = std::fs::read_to_string(d.join("out/scene.ron")).unwrap();
     for needle in [
         r#"file: "../xml/meshes/cube.obj""#,
-        r#"masking: "separable""#,
+        r#"distribution: "ggx""#,
         r#"interpolation: "bilinear", orientation: "mitsuba""#,
         "rotation: 45",
         "spp: 2, seed: 7",
@@ -738,7 +738,7 @@ fn a_converted_scene_parses_back_into_the_same_description() {
             height: 28
         })
     );
-    assert_eq!(d.bsdfs["gold"].kind, "glossy");
+    assert_eq!(d.bsdfs["gold"].kind, "roughconductor");
     assert_eq!(d.shapes[5].segments, Some(1024));
     for c in [c.clone(), converts(MITSUBA_SCENE)] {
         let parsed: SceneDescription =
@@ -755,15 +755,15 @@ fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
         <float name="fov" value="40"/>
         <float name="aperture_radius" value="0.1"/>
     </sensor>
-    <bsdf type="plastic" id="p"/>
+    <bsdf type="blendbsdf" id="p"/>
     <shape type="obj">
         <string name="filename" value="x.obj"/>
-        <bsdf type="roughconductor"><string name="material" value="none"/></bsdf>
+        <bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf>
     </shape>
     <shape type="sphere">
         <bsdf type="diffuse"><texture type="bitmap" name="reflectance"/></bsdf>
     </shape>
-    <texture type="checkerboard" id="t"/>
+    <texture type="checkerboard"/>
     <emitter type="envmap"><string name="filename" value="sky.hdr"/></emitter>
     <emitter type="constant"/>
 </scene>
@@ -775,9 +775,9 @@ fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
     for needle in [
         "bad.xml:2: integrator `path` is not converted",
         "bad.xml:5: property `aperture_radius` of the sensor is not converted",
-        "bad.xml:7: BSDF `plastic` is not converted",
-        "bad.xml:10: roughconductor without `distribution: ggx`",
-        "bad.xml:13: <texture> (`reflectance`) inside a BSDF is not converted",
+        "bad.xml:7: BSDF `blendbsdf` is not converted",
+        "bad.xml:10: microfacet distribution `phong` is not converted",
+        "bad.xml:13: a bitmap texture without `filename`",
         "bad.xml:15: <texture> is not converted",
         "bad.xml:16: env map `sky.hdr`: lumis reads OpenEXR maps only",
         "bad.xml:17: emitter `constant` is not converted",

@@ -14,6 +14,7 @@ mod distributed;
 mod extremes;
 mod import;
 mod import_hostile;
+mod import_materials;
 mod integrators;
 mod module_layers;
 mod one_point;

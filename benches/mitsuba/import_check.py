@@ -6,9 +6,9 @@ The scene has what issue 18 asks for: an OBJ mesh (a torus of quads, with vertex
 shaded by `face_normals`) in a rough conductor (`roughconductor`, GGX α = 0.3, `material: none`,
 so Fresnel is 1 and the masking form matters), a diffuse floor, an area light, and the studio
 env map turned about +y (seen directly behind the torus and in its reflection). The conversion
-selects the bilinear env map in Mitsuba's orientation and the separable masking. Two controls
-rendered from the same conversion with `nearest` interpolation and with `height_correlated`
-masking show that the test resolves those differences.
+selects the bilinear env map in Mitsuba's orientation and lumis' `roughconductor`. Two controls
+rendered from the same conversion with `nearest` interpolation and with the Beckmann
+distribution show that the test resolves those differences.
 
 Run through import_check.sh, which sets up the virtual environment and builds lumis.
 """
@@ -142,7 +142,7 @@ def main():
     p.add_argument("--block", type=int, default=16, help="block edge (pixels) of the test")
     p.add_argument("--variant", default="scalar_rgb", help="Mitsuba variant")
     p.add_argument("--no-controls", action="store_true",
-                   help="skip the nearest / height-correlated control renders")
+                   help="skip the nearest / Beckmann control renders")
     args = p.parse_args()
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
@@ -176,8 +176,7 @@ def main():
     if not args.no_controls:
         text = ron.read_text()
         for name, old, new in [("nearest env map", '"bilinear"', '"nearest"'),
-                               ("height-correlated masking", '"separable"',
-                                '"height_correlated"')]:
+                               ("Beckmann for GGX", '"ggx"', '"beckmann"')]:
             variant = work / f"control_{new.strip(chr(34))}.ron"
             variant.write_text(text.replace(old, new))
             runs = [lumis_render(args.lumis, variant, s, exr)[1] for s in range(args.runs)]

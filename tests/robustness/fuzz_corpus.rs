@@ -38,6 +38,11 @@ fn exr_corpus_never_panics() {
     replay("exr", lumis::fuzzing::exr);
 }
 
+#[test]
+fn texture_corpus_never_panics() {
+    replay("texture", lumis::fuzzing::texture);
+}
+
 /// The defects the fuzzers found, kept as named inputs: each must be refused with an error.
 #[test]
 fn inputs_that_once_crashed_are_refused() {

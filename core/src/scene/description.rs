@@ -296,6 +296,22 @@ impl PluginSpec {
         self.with(name, Value::Seq(components))
     }
 
+    /// A plugin written inline as a parameter's value (a texture, a nested BSDF).
+    pub fn plugin(self, name: &str, spec: PluginSpec) -> Self {
+        self.with(name, spec.into_value())
+    }
+
+    /// The plugin as a parameter's value: a map of its `type` and parameters, as a scene file
+    /// parses `(type: "checkerboard", color0: 0.2)`.
+    pub fn into_value(self) -> Value {
+        let mut map = ron::Map::new();
+        map.insert(Value::String("type".into()), Value::String(self.kind));
+        for (name, value) in self.params {
+            map.insert(Value::String(name), value);
+        }
+        Value::Map(map)
+    }
+
     fn with(mut self, name: &str, value: Value) -> Self {
         self.params.insert(name.to_string(), value);
         self
@@ -339,6 +355,11 @@ impl Serialize for ParamValue<'_> {
                 }
                 tuple.end()
             }
+            // A nested plugin, as a plugin is written: `(type: "checkerboard", ...)`.
+            Value::Map(map) => match PluginSpec::deserialize(Value::Map(map.clone())) {
+                Ok(spec) => spec.serialize(s),
+                Err(_) => self.0.serialize(s),
+            },
             other => other.serialize(s),
         }
     }

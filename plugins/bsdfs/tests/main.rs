@@ -6,3 +6,5 @@
 mod bsdfs;
 mod evaluation;
 mod glossy_masking;
+mod materials;
+mod microfacet;

@@ -2,6 +2,7 @@
 //! writes a texture inline where a parameter accepts one (`ParamKind::RgbOrTexture`,
 //! `ParamKind::FloatOrTexture`): `reflectance: (type: "checkerboard", color0: 0.2, color1: 0.8)`.
 
+pub mod bitmap;
 pub mod checkerboard;
 
 /// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.

@@ -187,6 +187,8 @@ impl Converter {
                     }
                 }
                 "shape" => self.shape(&node)?,
+                // Converted where a BSDF refers to it (`bsdf.rs`).
+                "texture" if node.attribute("id").is_some() => {}
                 "emitter" => self.emitter(&node)?,
                 other => self.problem(at, format!("<{other}> is not converted")),
             }

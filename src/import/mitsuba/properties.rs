@@ -238,6 +238,15 @@ impl Properties<'_, '_> {
         Some((property.value.clone(), property.line))
     }
 
+    /// Whether property `name` or a nested object (a texture) of that name is given.
+    pub(super) fn has(&self, name: &str) -> bool {
+        self.properties.contains_key(name)
+            || self
+                .objects
+                .iter()
+                .any(|o| o.attribute("name") == Some(name))
+    }
+
     /// Marks property `name` as read without using it (it does not change the image).
     pub(super) fn ignore(&mut self, name: &str) {
         self.take(name);
