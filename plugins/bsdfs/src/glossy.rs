@@ -20,6 +20,8 @@
 //! with the cosine-weighted hemisphere, chosen in proportion to their estimated albedos for
 //! the given ωo; `pdf` is exactly that mixture's density.
 
+pub use crate::microfacet::Masking;
+use crate::microfacet::{Ggx, Microfacet, reflect};
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::{
     Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
@@ -38,15 +40,6 @@ pub struct Glossy {
     f0: Rgb,
     diffuse: Rgb,
     masking: Masking,
-}
-
-/// The form of Smith's masking-shadowing term G₂.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Masking {
-    /// 1 / (1 + Λ(ωo) + Λ(ωi)).
-    HeightCorrelated,
-    /// G₁(ωo) G₁(ωi), Mitsuba 3's.
-    Separable,
 }
 
 /// A pair of directions (ωo, ωi) with what their value and density share.
@@ -78,12 +71,6 @@ fn schlick<L: Lanes>(f0: Rgb, cos: L) -> V3<L> {
     V3::splat(f0) + V3::splat(Rgb::ONE - f0) * m5
 }
 
-/// ωo reflected about the microfacet normal h.
-#[inline(always)]
-fn reflect<L: Lanes>(wo: V3<L>, h: V3<L>) -> V3<L> {
-    h * (L::splat(2.0) * wo.dot(h)) - wo
-}
-
 /// x⁵, as products.
 #[inline(always)]
 fn pow5<L: Lanes>(x: L) -> L {
@@ -103,35 +90,10 @@ impl Glossy {
         }
     }
 
-    /// GGX normal distribution D(h), h in the local frame; 0 for h below the surface.
+    /// The GGX distribution of this roughness.
     #[inline(always)]
-    fn d<L: Lanes>(&self, h: V3<L>) -> L {
-        let a2 = L::splat(self.alpha * self.alpha);
-        let cos2 = h.z * h.z;
-        // (h.x² + h.y²)/α² + h.z², the form that keeps its precision for tiny α.
-        let t = (h.x * h.x + h.y * h.y) / a2 + cos2;
-        let d = L::splat(1.0) / (L::splat(PI) * a2 * t * t);
-        L::select(h.z.le(L::splat(0.0)), L::splat(0.0), d)
-    }
-
-    /// Smith's Λ(w) for GGX; infinite at grazing w.
-    #[inline(always)]
-    fn lambda<L: Lanes>(&self, w: V3<L>) -> L {
-        let cos2 = w.z * w.z;
-        let tan2 = (w.x * w.x + w.y * w.y) / cos2;
-        let a2 = L::splat(self.alpha * self.alpha);
-        let lambda = ((L::splat(1.0) + a2 * tan2).sqrt() - L::splat(1.0)) * L::splat(0.5);
-        L::select(cos2.eq(L::splat(0.0)), L::splat(f32::INFINITY), lambda)
-    }
-
-    /// Masking-shadowing G2(ωo, ωi), given Λ(ωo).
-    #[inline(always)]
-    fn g2<L: Lanes>(&self, lambda_o: L, wi: V3<L>) -> L {
-        let (one, lambda_i) = (L::splat(1.0), self.lambda(wi));
-        match self.masking {
-            Masking::HeightCorrelated => one / (one + lambda_o + lambda_i),
-            Masking::Separable => one / ((one + lambda_o) * (one + lambda_i)),
-        }
+    fn microfacet<L: Lanes>(&self) -> Microfacet<Ggx, L> {
+        Microfacet::constant(self.alpha)
     }
 
     /// Probability of sampling the specular lobe for this ωo.
@@ -149,18 +111,9 @@ impl Glossy {
     /// Λ(ωo); zero where it is not finite.
     #[inline(always)]
     fn specular_value<L: Lanes>(&self, wo: V3<L>, wi: V3<L>, h: V3<L>, d: L, lambda_o: L) -> V3<L> {
-        let spec =
-            schlick(self.f0, wo.dot(h)) * (d * self.g2(lambda_o, wi) / (L::splat(4.0) * wo.z));
+        let g2 = self.masking.g2(lambda_o, self.microfacet().lambda(wi));
+        let spec = schlick(self.f0, wo.dot(h)) * (d * g2 / (L::splat(4.0) * wo.z));
         V3::select(spec.is_finite(), spec, V3::zero())
-    }
-
-    /// The specular lobe's sampling density (VNDF: D_ωo(h) / (4 ωo·h) = G1(ωo) D(h) / (4 cos
-    /// θo)) given D(h) and Λ(ωo); zero where it is not finite.
-    #[inline(always)]
-    fn specular_pdf<L: Lanes>(&self, wo: V3<L>, d: L, lambda_o: L) -> L {
-        let one = L::splat(1.0);
-        let pdf = (one / (one + lambda_o)) * d / (L::splat(4.0) * wo.z);
-        L::select(pdf.is_finite(), pdf, L::splat(0.0))
     }
 
     /// The diffuse base's value · cos θi (zero without a base, at no cost).
@@ -181,12 +134,13 @@ impl Glossy {
     #[inline(always)]
     fn pair<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> Pair<L> {
         let h = (wo + wi).normalize_or_zero();
+        let microfacet = self.microfacet();
         Pair {
             wo,
             wi,
             h,
-            d: self.d(h),
-            lambda_o: self.lambda(wo),
+            d: microfacet.d(h),
+            lambda_o: microfacet.lambda(wo),
         }
     }
 
@@ -209,33 +163,10 @@ impl Glossy {
     #[inline(always)]
     fn density<L: Lanes>(&self, pair: &Pair<L>) -> L {
         let zero = L::splat(0.0);
-        let specular_pdf = self.specular_pdf(pair.wo, pair.d, pair.lambda_o);
+        let specular_pdf = Microfacet::<Ggx, L>::reflection_pdf(pair.wo, pair.d, pair.lambda_o);
         let p = self.specular_probability(pair.wo);
         let pdf = p * specular_pdf + (L::splat(1.0) - p) * cosine_hemisphere_pdf_lanes(pair.wi.z);
         L::select(pair.below(), zero, pdf)
-    }
-
-    /// Heitz 2018: a visible normal for ωo (above the surface).
-    #[inline(always)]
-    fn sample_visible_normal<L: Lanes>(&self, wo: V3<L>, (u0, u1): (L, L)) -> V3<L> {
-        let (zero, one, alpha) = (L::splat(0.0), L::splat(1.0), L::splat(self.alpha));
-        // The view direction in the hemisphere configuration (α stretched to 1).
-        let vh = V3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
-        let len2 = vh.x * vh.x + vh.y * vh.y;
-        let t1 = V3::select(
-            len2.gt(zero),
-            V3::new(-vh.y, vh.x, zero) / len2.sqrt(),
-            V3::splat(Vec3::X),
-        );
-        let t2 = vh.cross(t1);
-        // A point on the projected disk, warped toward the visible half.
-        let r = u0.sqrt();
-        let (sin, cos) = (L::splat(2.0 * PI) * u1).sin_cos();
-        let p1 = r * cos;
-        let s = L::splat(0.5) * (one + vh.z);
-        let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * r * sin;
-        let nh = t1 * p1 + t2 * p2 + vh * (one - p1 * p1 - p2 * p2).max(zero).sqrt();
-        V3::new(alpha * nh.x, alpha * nh.y, nh.z.max(zero)).normalize()
     }
 }
 
@@ -272,13 +203,13 @@ impl BsdfLanes for Glossy {
     ) -> BsdfSampleLanes<L> {
         let specular = u_lobe.lt(self.specular_probability(wo));
         let wi = if specular.all() {
-            reflect(wo, self.sample_visible_normal(wo, u))
+            reflect(wo, self.microfacet().sample_visible_normal(wo, u))
         } else if !specular.any() {
             square_to_cosine_hemisphere_lanes(u.0, u.1)
         } else {
             V3::select(
                 specular,
-                reflect(wo, self.sample_visible_normal(wo, u)),
+                reflect(wo, self.microfacet().sample_visible_normal(wo, u)),
                 square_to_cosine_hemisphere_lanes(u.0, u.1),
             )
         };

@@ -77,7 +77,7 @@ fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 }
 
 /// A composite rule on [a, b]: `panels` equal panels of 8-point Gauss–Legendre.
-fn composite(a: f64, b: f64, panels: usize) -> Vec<(f64, f64)> {
+pub(crate) fn composite(a: f64, b: f64, panels: usize) -> Vec<(f64, f64)> {
     let base = gauss_legendre(8);
     let width = (b - a) / panels as f64;
     (0..panels)
@@ -91,16 +91,16 @@ fn composite(a: f64, b: f64, panels: usize) -> Vec<(f64, f64)> {
 
 /// An integral by quadrature and an estimate of its error.
 #[derive(Clone, Copy, Debug)]
-struct Quadrature {
-    value: f64,
-    error: f64,
+pub(crate) struct Quadrature {
+    pub(crate) value: f64,
+    pub(crate) error: f64,
 }
 
 impl Quadrature {
     /// `rule(panels)` evaluated at `panels` and at twice as many: the finer value, with the
     /// difference as its error (an overestimate for the piecewise-smooth integrands here, whose
     /// error falls at least fourfold when the panels are halved).
-    fn refined(rule: impl Fn(usize) -> f64, panels: usize) -> Self {
+    pub(crate) fn refined(rule: impl Fn(usize) -> f64, panels: usize) -> Self {
         let coarse = rule(panels);
         let fine = rule(2 * panels);
         Quadrature {
@@ -393,7 +393,7 @@ fn masking_is_the_product_of_g1_when_separable_is_asked_for() {
 
 /// The direction at (ψ, φ) with tan θh = α tan ψ, a substitution that spreads a GGX lobe of any
 /// width over ψ in [0, π/2); and the Jacobian dω / (dψ dφ).
-fn lobe_coordinates(alpha: f64, psi: f64, phi: f64) -> (DVec3, f64) {
+pub(crate) fn lobe_coordinates(alpha: f64, psi: f64, phi: f64) -> (DVec3, f64) {
     let (s, c) = psi.sin_cos();
     let r2 = c * c + alpha * alpha * s * s;
     let r = r2.sqrt();
@@ -448,7 +448,12 @@ fn microfacet_distribution_is_normalised() {
 /// (ωo·h > 0), in the coordinates of [`lobe_coordinates`]. The kink where ωo·h = 0 is kept off
 /// the nodes: φ runs over the visible arc only, and ψ is split where that arc starts to shrink
 /// (θh = π/2 − θo).
-fn visible_normals(alpha: f64, wo: DVec3, panels: usize, mut visit: impl FnMut(DVec3, f64)) {
+pub(crate) fn visible_normals(
+    alpha: f64,
+    wo: DVec3,
+    panels: usize,
+    mut visit: impl FnMut(DVec3, f64),
+) {
     let (sin_o, cos_o) = ((1.0 - wo.z * wo.z).max(0.0).sqrt(), wo.z);
     let phi_o = wo.y.atan2(wo.x);
     let psi_split = cos_o.atan2(alpha * sin_o);

@@ -6,3 +6,4 @@
 mod bsdfs;
 mod evaluation;
 mod glossy_masking;
+mod microfacet;
