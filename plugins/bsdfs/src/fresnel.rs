@@ -34,7 +34,7 @@ pub fn dielectric<L: Lanes>(cos_i: L, eta: L) -> (L, L, L, L) {
     // η = 1: nothing reflected; grazing incidence: everything (0/0 above).
     let matched = eta.eq(one);
     let r = L::select(matched, zero, L::select(cos_i_abs.eq(zero), one, r));
-    let cos_t = (-cos_t_abs).copysign(cos_i);
+    let cos_t = cos_t_abs.copysign(-cos_i);
     (r, L::select(cos_t2.lt(zero), zero, cos_t), eta_it, eta_ti)
 }
 

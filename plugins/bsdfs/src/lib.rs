@@ -2,12 +2,16 @@
 //! formulas several of them share: `microfacet` (GGX and Beckmann) and `fresnel` (dielectric and
 //! conductor reflectance, named indices of refraction).
 
+pub mod dielectric;
 pub mod diffuse;
 pub mod fresnel;
 pub mod glossy;
+pub mod ior;
 pub mod measured;
 pub mod microfacet;
 pub mod mirror;
+pub mod roughdielectric;
+pub mod thindielectric;
 
 /// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.
 #[inline(never)]

@@ -265,7 +265,7 @@ pub fn erf<L: Lanes>(x: L) -> L {
     let x2 = x * x;
     let c = |v: f32| L::splat(v);
     let series = x
-        * (c(1.128_379_2)
+        * (c(std::f32::consts::FRAC_2_SQRT_PI)
             + x2 * (c(-0.376_126_4)
                 + x2 * (c(0.112_837_91)
                     + x2 * (c(-0.026_866_17)

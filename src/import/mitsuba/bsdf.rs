@@ -65,6 +65,7 @@ impl Converter {
             "diffuse" => self.diffuse(p),
             "roughconductor" => self.roughconductor(p),
             "conductor" => self.conductor(p),
+            "dielectric" | "thindielectric" | "roughdielectric" => self.dielectric(p),
             other => {
                 self.problem(p.line, format!("BSDF `{other}` is not converted"));
                 Ok(None)
