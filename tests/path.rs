@@ -453,3 +453,36 @@ fn every_weighting_gives_the_same_mean_with_indirect_light() {
         0.02,
     );
 }
+
+/// `hide_emitters`: an area light filling the view, facing the camera in front of a white wall
+/// it does not light, shows its radiance, and nothing when hidden (camera rays pass through it,
+/// as Mitsuba's do, to the unlit wall).
+#[test]
+fn hidden_emitters_are_seen_through() {
+    let text = r#"Scene(
+    camera: (position: (0, 0, -3), target: (0, 0, 0), fov: 20),
+    film: (width: 8, height: 8),
+    sampler: (spp: 2, seed: 4),
+    integrator: (type: "path"),
+    bsdfs: { "white": (type: "diffuse", reflectance: 0.8) },
+    shapes: [
+        (type: "rectangle", bsdf: "white", transform: (scale: (5, 5, 1), rotate: [(axis: (0, 1, 0), angle: 180)]),
+         emitter: (type: "area", radiance: 2)),
+        (type: "rectangle", bsdf: "white", transform: (scale: (9, 9, 1), translate: (0, 0, 1),
+         rotate: [(axis: (0, 1, 0), angle: 180)])),
+    ],
+)"#;
+    let (_dir, file) = scene_file("hidden.ron", text);
+    let seen = render(&file, &[]);
+    assert!(
+        seen.color.iter().all(|c| (c.x - 2.0).abs() < 1e-5),
+        "the light seen: {:?}",
+        &seen.color[..4]
+    );
+    let hidden = render(&file, &[format!("integrator.{}=true", path::HIDE_EMITTERS)]);
+    assert!(
+        hidden.color.iter().all(|c| *c == glam::Vec3::ZERO),
+        "hidden: {:?}",
+        &hidden.color[..4]
+    );
+}
