@@ -486,3 +486,44 @@ fn hidden_emitters_are_seen_through() {
         &hidden.color[..4]
     );
 }
+
+/// The `depth_samples` layer counts the samples drawn at each vertex depth, summed over a
+/// pixel's camera samples: N = `samples` per non-delta light at vertex 1, `deep_samples` per
+/// light at vertex 2, nothing at vertex 3 and deeper with `max_depth` 3 (vertex 3 only ends
+/// paths of 3 segments).
+#[test]
+fn depth_samples_count_each_vertex_depth() {
+    let file = repo_path("scenes/cornell.ron");
+    let (spp, samples, deep) = (2.0f32, 8.0f32, 4.0f32);
+    let film = render(
+        &file,
+        &[
+            "film.width=16".into(),
+            "film.height=12".into(),
+            format!("sampler.spp={spp}"),
+            format!("integrator=(type: {:?})", path::NAME),
+            format!("integrator.{}=3", path::MAX_DEPTH),
+            format!("integrator.samples={samples}"),
+            format!("integrator.{}={deep}", path::DEEP_SAMPLES),
+            format!("integrator.aovs=[{:?}]", path::DEPTH_SAMPLES),
+        ],
+    );
+    let channels = film.aov(path::DEPTH_SAMPLES).expect("the layer").channels();
+    assert_eq!(channels.len(), 8);
+    let first_max = channels[0].iter().cloned().fold(0.0, f32::max);
+    let lights = first_max / (spp * samples);
+    assert!(lights >= 1.0 && lights.fract() == 0.0, "{first_max}");
+    for (d1, d2) in channels[0].iter().zip(&channels[1]) {
+        // Each camera sample meets a surface (N per light there) or leaves the scene.
+        assert!(
+            (d1 / (samples * lights)).fract() == 0.0 && *d1 <= first_max,
+            "{d1}"
+        );
+        assert!(
+            (d2 / (deep * lights)).fract() == 0.0 && *d2 <= spp * deep * lights,
+            "{d2}"
+        );
+    }
+    assert!(channels[1].iter().any(|&d2| d2 > 0.0));
+    assert!(channels[2..].iter().flatten().all(|&d| d == 0.0));
+}
