@@ -750,7 +750,7 @@ fn a_converted_scene_parses_back_into_the_same_description() {
 #[test]
 fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
     let xml = r#"<scene version="3.0.0">
-    <integrator type="path"/>
+    <integrator type="volpath"/>
     <sensor type="perspective">
         <float name="fov" value="40"/>
         <float name="aperture_radius" value="0.1"/>
@@ -773,7 +773,7 @@ fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     for needle in [
-        "bad.xml:2: integrator `path` is not converted",
+        "bad.xml:2: integrator `volpath` is not converted",
         "bad.xml:5: property `aperture_radius` of the sensor is not converted",
         "bad.xml:7: BSDF `blendbsdf` is not converted",
         "bad.xml:10: microfacet distribution `phong` is not converted",

@@ -314,6 +314,31 @@ fn same_mean_configurations(env_map: bool) -> Vec<(String, Vec<String>)> {
 /// whole-image bias it detects with probability 90 % must be at most `detectable` (relative).
 fn same_mean_on_scene(index: usize, spp: u32, detectable: f64) {
     let (name, _dir, path) = same_mean_scene(index);
+    let balance_type = vec![format!("integrator.type={}", balance::NAME)];
+    let configurations = same_mean_configurations(index == 1);
+    same_mean(
+        &name,
+        &path,
+        spp,
+        &balance_type,
+        &configurations,
+        detectable,
+    );
+}
+
+/// The same-mean test of `configurations` (each a name and its overrides) against the
+/// reference configuration `balance_type` (`balance` for the direct integrators; `path` with
+/// the balance heuristic for `path`'s weightings, tests/path.rs) on the scene `path`, as
+/// [`same_mean_on_scene`] describes it.
+pub(crate) fn same_mean(
+    name: &str,
+    path: &Path,
+    spp: u32,
+    balance_type: &[String],
+    configurations: &[(String, Vec<String>)],
+    detectable: f64,
+) {
+    let path = path.to_path_buf();
     let base = vec![
         "film.width=24".to_string(),
         "film.height=18".to_string(),
@@ -321,15 +346,13 @@ fn same_mean_on_scene(index: usize, spp: u32, detectable: f64) {
         "sampler.jitter=false".to_string(),
         format!("integrator.{}=16", mis::SAMPLES),
     ];
-    let configurations = same_mean_configurations(index == 1);
     // Seeds: the suite's seed, then disjoint ranges per set of runs.
     let first = test_seed() * 1_000_000;
     let with = |extra: &[String]| [base.clone(), extra.to_vec()].concat();
-    let balance_type = vec![format!("integrator.type={}", balance::NAME)];
-    let reference_pilot = pixel_means(&path, &with(&balance_type), first..first + PILOT_RUNS);
+    let reference_pilot = pixel_means(&path, &with(balance_type), first..first + PILOT_RUNS);
     let reference = pixel_means(
         &path,
-        &with(&balance_type),
+        &with(balance_type),
         first + 100..first + 100 + REFERENCE_RUNS,
     );
     let (width, height): (usize, usize) = (24, 18);

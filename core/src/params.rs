@@ -448,6 +448,48 @@ impl Params {
         self.float_value(spec, value.as_ref(), default, [min, max], "a number")
     }
 
+    /// A parameter declared as a [`ParamKind::Float`] that may also be given as one of
+    /// `names` (compared without regard to case, as Mitsuba compares its material names): the
+    /// number it names, or the number given, in the declared range. A name not among them is
+    /// an error that lists them and the closest.
+    pub fn float_or_name(
+        &mut self,
+        name: &str,
+        names: &[(&'static str, f32)],
+    ) -> Result<f32, PluginError> {
+        let (spec, value) = self.take(name);
+        let ParamKind::Float { default, min, max } = spec.kind else {
+            panic!("parameter `{name}` is not declared as a float");
+        };
+        if let Some(Value::String(given)) = &value {
+            let lower = given.to_lowercase();
+            return names
+                .iter()
+                .find(|(n, _)| *n == lower)
+                .map(|&(_, v)| v)
+                .ok_or_else(|| PluginError::OutOfRange {
+                    plugin: self.plugin.clone(),
+                    name: name.to_string(),
+                    range: format!(
+                        "a number in {} or one of {}",
+                        spec.range_text(),
+                        names.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+                    ),
+                    found: format!(
+                        "{given:?}{}",
+                        did_you_mean(&lower, names.iter().map(|(n, _)| *n))
+                    ),
+                });
+        }
+        self.float_value(
+            spec,
+            value.as_ref(),
+            default,
+            [min, max],
+            "a number or a name",
+        )
+    }
+
     /// The number `value` (or `default`) of parameter `spec`, in [min, max].
     fn float_value(
         &self,

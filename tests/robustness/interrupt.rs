@@ -110,6 +110,33 @@ fn ctrl_c_stops_a_200000_spp_render_within_2_s() {
     assert!(no_temporaries(dir.path()));
 }
 
+/// The same with `path`, paths unbounded and Russian roulette off (each camera sample may run to
+/// the hard cap of 1024 vertices): the flag read before every camera sample still stops it.
+#[test]
+fn ctrl_c_stops_an_unbounded_path_render_within_2_s() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut child, lines) = start(
+        dir.path(),
+        &[
+            "--spp",
+            "200000",
+            "--set",
+            "integrator=(type: \"path\")",
+            "--set",
+            "integrator.max_depth=-1",
+            "--set",
+            "integrator.rr_depth=2147483647",
+        ],
+    );
+    let mut seen = Vec::new();
+    wait_for(&lines, "rendering ", &mut seen);
+    signal(&child, libc::SIGINT);
+    let (code, took) = wait_exit(&mut child, Duration::from_secs(30));
+    assert!(took < Duration::from_secs(2), "took {took:?}");
+    assert_eq!(code, Some(130), "{seen:#?}");
+    assert!(no_temporaries(dir.path()));
+}
+
 #[test]
 fn a_second_ctrl_c_exits_at_once() {
     let dir = tempfile::tempdir().unwrap();

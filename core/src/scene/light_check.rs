@@ -1,8 +1,9 @@
 //! Warnings (not errors) for scenes that cannot produce light, checked when a scene is loaded:
 //! a scene with no emitter, or one where no light can reach the camera.
 //!
-//! The check follows the paths the renderer's integrators sample, all of which end after one
-//! bounce (direct lighting): camera rays through a grid of pixel centres over the rendered
+//! The check follows the paths the direct-lighting integrators sample, which end after one
+//! bounce (`path` goes on; light that needs two bounces or more is not looked for): camera rays
+//! through a grid of pixel centres over the rendered
 //! window, and at each point they hit, a few light samples of every emitter (lit, facing, and
 //! unoccluded toward a BSDF that reflects or transmits there) and a few BSDF samples (reaching an emitter
 //! or an environment that is not black). The first such path ends the check; a scene where none
@@ -48,8 +49,8 @@ pub fn light_warnings(scene: &Scene) -> Vec<String> {
     }
     vec![format!(
         "no light is likely to reach the camera: of {} camera rays over the image, none sees an emitter, \
-         nor a surface that an emitter lights directly (every integrator stops after one bounce); \
-         the image will likely be black",
+         nor a surface that an emitter lights directly: the image will likely be black (with `path`, \
+         only light that reaches the camera over two bounces or more shows)",
         nx * ny
     )]
 }

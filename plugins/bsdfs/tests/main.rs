@@ -4,6 +4,7 @@
 //! declared here; the root package's `every_test_file_is_a_module` fails until it is.
 
 mod bsdfs;
+mod dielectrics;
 mod evaluation;
 mod glossy_masking;
 mod materials;

@@ -112,6 +112,31 @@ impl Allocation for SecondOrderAlpha {
     }
 }
 
+/// The allocation of mode `mode` ([`INTEGRATED`] or [`PREPROCESSED`]) for N = `samples`, with
+/// its `alpha_samples` and `clamp`.
+fn second_order(
+    params: &mut Params,
+    mode: &str,
+    samples: u32,
+) -> Result<SecondOrderAlpha, PluginError> {
+    let phases = TwoPhases {
+        samples,
+        mode: mode_named(params, mode, samples)?,
+    };
+    let clamp = read_clamp(params)?;
+    Ok(SecondOrderAlpha { phases, clamp })
+}
+
+/// The allocation of a plugin that declares `mode` as [`MODE_SPEC`] (integrated or
+/// preprocessed), `alpha_samples` and `clamp`, for N = `samples`: how `path` takes the paper's
+/// α at its first vertex.
+///
+/// [`MODE_SPEC`]: alpha_family::MODE_SPEC
+pub fn read_allocation(params: &mut Params, samples: u32) -> Result<SecondOrderAlpha, PluginError> {
+    let mode = params.choice(MODE)?;
+    second_order(params, mode, samples)
+}
+
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     let samples = read_samples(params)?;
     let balance = PerSample(Balance);
@@ -121,15 +146,8 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         let allocation = FixedAlpha { alpha, samples };
         return MisIntegrator::boxed(params, Weighted(allocation, balance));
     }
-    let phases = TwoPhases {
-        samples,
-        mode: mode_named(params, mode, samples)?,
-    };
-    let clamp = read_clamp(params)?;
-    MisIntegrator::boxed(
-        params,
-        Weighted(SecondOrderAlpha { phases, clamp }, balance),
-    )
+    let allocation = second_order(params, mode, samples)?;
+    MisIntegrator::boxed(params, Weighted(allocation, balance))
 }
 
 inventory::submit! {

@@ -133,6 +133,13 @@ pub struct LightTally {
     n_light: u32,
 }
 
+impl LightTally {
+    /// The samples of the counted phases, of both techniques.
+    pub(crate) fn samples(&self) -> u32 {
+        self.n_bsdf + self.n_light
+    }
+}
+
 impl Observer for LightTally {
     fn observe(&mut self, phase: &Phase, contributions: &[Rgb]) {
         let role = phase.role;

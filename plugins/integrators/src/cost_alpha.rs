@@ -111,8 +111,12 @@ impl AlphaRule for CostAware {
     }
 }
 
-fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let samples = read_samples(params)?;
+/// The allocation of the parameters above but `samples` and `aovs`, for N = `samples` (also
+/// `path`'s at its first vertex).
+pub fn read_allocation(
+    params: &mut Params,
+    samples: u32,
+) -> Result<PilotAlpha<CostAware>, PluginError> {
     let phases = TwoPhases {
         samples,
         mode: read_mode(params, samples)?,
@@ -125,11 +129,16 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         ratio: (ratio > 0.0).then_some(ratio),
         costs: Vec::new(),
     };
-    let allocation = PilotAlpha {
+    Ok(PilotAlpha {
         phases,
         clamp,
         rule,
-    };
+    })
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let samples = read_samples(params)?;
+    let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 

@@ -170,6 +170,116 @@ fn reaches_light(
     Reached::Surface(hit, emitter.eval(ray.direction, Some(&hit)))
 }
 
+/// What a BSDF-sampled ray that was traced to its closest surface, `hit` (`None`: it left the
+/// scene), finds of light `light`: [`reaches_light`]'s answer from the whole trace, for the ray
+/// a path goes on along.
+fn reached_from(
+    scene: &Scene,
+    light: usize,
+    light_shape: Option<u32>,
+    ray: &Ray,
+    hit: Option<&Intersection>,
+) -> Reached {
+    let emitter = scene.emitters[light].as_ref();
+    if scene.environment == Some(light) {
+        if hit.is_some() {
+            return Reached::Nothing;
+        }
+        emitter.prefetch(ray.direction);
+        return Reached::Environment;
+    }
+    match hit {
+        Some(hit) if Some(hit.shape) == light_shape => {
+            let on_light = EmitterHit {
+                position: hit.position,
+                normal: hit.geometric_normal,
+                distance: hit.t,
+            };
+            Reached::Surface(on_light, emitter.eval(ray.direction, Some(&on_light)))
+        }
+        _ => Reached::Nothing,
+    }
+}
+
+/// The way a path goes on from a shading point: a BSDF sample, the ray leaving the point along
+/// it, and the closest surface that ray meets (`None`: it leaves the scene).
+#[derive(Clone, Copy, Debug)]
+pub struct Continuation {
+    /// The sample: its weight (eval / pdf, with the 1/η² of a refraction) multiplies the path's
+    /// throughput, its η the product a path's Russian roulette reads.
+    pub sample: BsdfSample,
+    pub ray: Ray,
+    pub hit: Option<Intersection>,
+}
+
+/// The continuation of a path at one shading point, as the point's light estimates are drawn:
+/// the first BSDF sample drawn there for any light is the one the path goes on along (it is
+/// drawn from the BSDF like any other, whatever the phase and the light, so the path's next
+/// vertex is distributed as BSDF sampling draws it; docs/integrators.md).
+#[derive(Clone, Copy, Debug, Default)]
+pub enum ContinuationSlot {
+    /// The path does not go on from this point: no sample is traced further.
+    #[default]
+    NotWanted,
+    /// The next BSDF sample drawn at the point will be the continuation.
+    Wanted,
+    /// Drawn: the continuation, or `None` where the sample drew no direction or leaves on a
+    /// side of the surface its BSDF does not scatter toward (the path ends).
+    Drawn(Option<Continuation>),
+}
+
+impl ContinuationSlot {
+    /// Whether the next BSDF sample is to be the continuation.
+    #[inline(always)]
+    pub fn is_wanted(&self) -> bool {
+        matches!(self, ContinuationSlot::Wanted)
+    }
+}
+
+/// Draws a BSDF sample at `sp` ([`BSDF_SAMPLE_NUMBERS`] numbers from `sampler`) and traces it
+/// to the closest surface, for no light: the continuation of a path at a point where no light
+/// estimate drew a BSDF sample. `None` as [`ContinuationSlot::Drawn`] says.
+pub fn draw_continuation(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    sampler: &mut Sampler,
+) -> Option<Continuation> {
+    let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
+    let sample = sp.bsdf.sample(&sp.ctx, sp.wo, u_lobe, u)?;
+    let wi = sp.frame.to_world(sample.wi);
+    let leaves = if sp.flags.transmission() {
+        sp.leaves_toward::<true>(wi, sample.wi)
+    } else {
+        sp.leaves_toward::<false>(wi, sample.wi)
+    };
+    if !leaves {
+        return None;
+    }
+    let ray = sp.origin.ray(&sp.hit, wi);
+    let hit = scene
+        .geometry
+        .first_hit_leaving(&ray, &sp.hit)
+        .map(|first| scene.geometry.surface(&ray, &first));
+    Some(Continuation { sample, ray, hit })
+}
+
+/// Draws the first of a phase's BSDF samples for non-delta light `light` at `sp` as
+/// [`draw_bsdf_samples`] draws it (the same numbers, the same record) and returns it as the
+/// path's continuation, its ray traced to the closest surface.
+pub fn draw_continuing_bsdf_sample(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    sampler: &mut Sampler,
+    records: &mut Vec<SampleRecord>,
+    densities: Densities,
+    deferred: Option<&mut DeferredLookups>,
+) -> Option<Continuation> {
+    let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
+    let s = sp.bsdf.sample(&sp.ctx, sp.wo, u_lobe, u);
+    BsdfRecords::new(scene, sp, light, densities).push_continuing(s.as_ref(), records, deferred)
+}
+
 /// The record of a BSDF sample `s` that reached its light, from which radiance `le` arrives;
 /// `p_light()` is the light's density in its direction (asked for only when it counts).
 fn reached_record(s: &BsdfSample, le: Rgb, p_light: impl FnOnce() -> f32) -> SampleRecord {
@@ -395,6 +505,58 @@ impl<'a> BsdfRecords<'a> {
         records: &mut Vec<SampleRecord>,
         deferred: Option<&mut DeferredLookups>,
     ) {
+        let (scene, light, light_shape, from) =
+            (self.scene, self.light, self.light_shape, &self.sp.hit);
+        self.push_reaching::<TRANSMITS>(s, records, deferred, |ray| {
+            reaches_light(scene, light, light_shape, ray, from)
+        });
+    }
+
+    /// [`push`](Self::push) for the BSDF sample a path goes on along: its ray is traced to the
+    /// closest surface (what the light is found from, the same record), which is returned with
+    /// the sample. `None` where the sample drew no direction or leaves on a side of the surface
+    /// its BSDF does not scatter toward: the path ends there.
+    #[inline(always)]
+    pub(crate) fn push_continuing(
+        &self,
+        s: Option<&BsdfSample>,
+        records: &mut Vec<SampleRecord>,
+        deferred: Option<&mut DeferredLookups>,
+    ) -> Option<Continuation> {
+        let (scene, light, light_shape, from) =
+            (self.scene, self.light, self.light_shape, &self.sp.hit);
+        let mut traced = None;
+        let reach = |ray: &Ray| {
+            let hit = scene
+                .geometry
+                .first_hit_leaving(ray, from)
+                .map(|first| scene.geometry.surface(ray, &first));
+            traced = Some((*ray, hit));
+            reached_from(scene, light, light_shape, ray, hit.as_ref())
+        };
+        if self.sp.flags.transmission() {
+            self.push_reaching::<true>(s, records, deferred, reach);
+        } else {
+            self.push_reaching::<false>(s, records, deferred, reach);
+        }
+        let (ray, hit) = traced?;
+        Some(Continuation {
+            sample: *s?,
+            ray,
+            hit,
+        })
+    }
+
+    /// [`push`](Self::push) with what the sample's ray finds of the light given by `reach`
+    /// (called once, only for a sample that leaves on a side the BSDF scatters toward).
+    #[inline(always)]
+    fn push_reaching<const TRANSMITS: bool>(
+        &self,
+        s: Option<&BsdfSample>,
+        records: &mut Vec<SampleRecord>,
+        deferred: Option<&mut DeferredLookups>,
+        reach: impl FnOnce(&Ray) -> Reached,
+    ) {
         let BsdfRecords {
             scene,
             sp,
@@ -430,7 +592,7 @@ impl<'a> BsdfRecords<'a> {
             records.push(black());
             return;
         }
-        match reaches_light(scene, light, light_shape, &ray, &sp.hit) {
+        match reach(&ray) {
             Reached::Nothing => records.push(black()),
             Reached::Surface(hit, le) => records.push(reached_record(s, le, || {
                 emitter.pdf_direction(&reference, wi, Some(&hit))

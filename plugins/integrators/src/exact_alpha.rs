@@ -71,8 +71,12 @@ impl AlphaRule for Minimise {
     }
 }
 
-fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let samples = read_samples(params)?;
+/// The allocation of the parameters above but `samples` and `aovs`, for N = `samples` (also
+/// `path`'s at its first vertex).
+pub fn read_allocation(
+    params: &mut Params,
+    samples: u32,
+) -> Result<PilotAlpha<Minimise>, PluginError> {
     let phases = TwoPhases {
         samples,
         mode: read_mode(params, samples)?,
@@ -83,11 +87,16 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     } else {
         Objective::Mixture
     };
-    let allocation = PilotAlpha {
+    Ok(PilotAlpha {
         phases,
         clamp,
         rule: Minimise(objective),
-    };
+    })
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let samples = read_samples(params)?;
+    let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 

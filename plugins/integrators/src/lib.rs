@@ -14,6 +14,7 @@
 //! - `pooled_alpha`: α from pilot statistics pooled over similar neighbouring pixels.
 //! - `variance_aware`: variance-aware weights (Grittmann et al. 2019) from a pilot pass.
 //! - `optimal_mis`: the optimal weights of Kondapaneni et al. 2019.
+//! - `path`: path tracing with the family's per-light estimator at every vertex.
 //!
 //! A method is a [`allocation::Method`] run by [`mis::MisIntegrator`]: most are an
 //! [`allocation::Allocation`] (how a light's N samples are split between the techniques, in
@@ -66,6 +67,7 @@ pub mod exact_alpha;
 pub mod light;
 pub mod max;
 pub mod optimal_mis;
+pub mod path;
 pub mod pooled_alpha;
 pub mod power;
 pub mod variance_aware;

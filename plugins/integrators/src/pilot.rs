@@ -79,7 +79,7 @@ impl PilotEstimates {
     }
 
     /// The estimate of N = `samples` samples of `sampling`'s light, `draw(sampling, n)`
-    /// drawing n of them (n > 0). At camera sample 0, which shades the point the pilot shaded,
+    /// drawing n of them (n > 0). At camera sample 0's first surface, the point the pilot shaded,
     /// the pilot's M samples are N's first M: `draw` draws N − M, and the estimate is
     /// (M·L̂_pilot + (N − M)·L̂)/N; elsewhere `draw` draws N. Unbiased whenever whatever steers
     /// `draw` came from the pilot only. (M ≤ N: [`crate::alpha_family::read_pilot_samples`].)
@@ -89,7 +89,7 @@ impl PilotEstimates {
         samples: u32,
         draw: impl FnOnce(&mut LightSampling, u32) -> Rgb,
     ) -> Rgb {
-        let pilot = if sampling.camera_sample() == 0 {
+        let pilot = if sampling.camera_sample() == 0 && sampling.is_primary() {
             self.get(sampling.pixel(), sampling.light())
         } else {
             None

@@ -273,8 +273,9 @@ impl Allocation for PooledAlpha {
     }
 }
 
-fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let samples = read_samples(params)?;
+/// The allocation of the parameters above but `samples` and `aovs`, for N = `samples` (also
+/// `path`'s at its first vertex).
+pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha, PluginError> {
     let pilot_samples = read_pilot_samples(params, 8, samples)?;
     let radius = params.int(RADIUS)? as u32;
     let pooled = match params.choice(OBJECTIVE)? {
@@ -283,7 +284,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         _ => Pooled::SecondOrder,
     };
     let clamp = read_clamp(params)?;
-    let allocation = PooledAlpha {
+    Ok(PooledAlpha {
         samples,
         pilot_samples,
         radius,
@@ -291,7 +292,12 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         clamp,
         alphas: AlphaMap::default(),
         estimates: PilotEstimates::default(),
-    };
+    })
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let samples = read_samples(params)?;
+    let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
 

@@ -11,8 +11,8 @@
 use crate::aovs::LightTally;
 use crate::batch::BatchScratch;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, BsdfRecords, DeferredLookups, Densities, SampleRecord, draw_bsdf_samples,
-    draw_light_samples, light_record_any,
+    BSDF_SAMPLE_NUMBERS, BsdfRecords, ContinuationSlot, DeferredLookups, Densities, SampleRecord,
+    draw_bsdf_samples, draw_continuing_bsdf_sample, draw_light_samples, light_record_any,
 };
 use crate::phase::{Observer, Phase, PhaseRole, SampleSplit};
 use crate::shading_point::ShadingPoint;
@@ -70,6 +70,12 @@ pub struct LightSampling<'a> {
     tally: Option<&'a mut LightTally>,
     /// The split and role of the last phase drawn, whose records are still in `buffers`.
     last_phase: Option<(SampleSplit, PhaseRole)>,
+    /// The vertex of the path the point is: 1 for the first surface a camera ray meets.
+    depth: u32,
+    /// Whether the point is the first surface the camera ray meets (what pilot passes shade).
+    primary: bool,
+    /// Where a path's continuation is taken from this point's BSDF samples, if it is wanted.
+    continuation: Option<&'a mut ContinuationSlot>,
 }
 
 impl<'a> LightSampling<'a> {
@@ -93,7 +99,44 @@ impl<'a> LightSampling<'a> {
             buffers,
             tally: None,
             last_phase: None,
+            depth: 1,
+            primary: true,
+            continuation: None,
         }
+    }
+
+    /// At vertex `depth` of a path (1: the first surface the camera ray meets), `primary` if
+    /// the point is that first surface (with hidden emitters, the first surface past them is
+    /// vertex 1 but not the surface a pilot pass shaded). The default: 1, primary.
+    pub fn at_vertex(self, depth: u32, primary: bool) -> Self {
+        LightSampling {
+            depth,
+            primary,
+            ..self
+        }
+    }
+
+    /// Takes a path's continuation from the first BSDF sample drawn while `slot` is
+    /// [`ContinuationSlot::Wanted`] ([`phase`](Self::phase)): its ray is traced to the closest
+    /// surface, and its record is the one it would have had.
+    pub fn with_continuation(self, slot: &'a mut ContinuationSlot) -> Self {
+        LightSampling {
+            continuation: Some(slot),
+            ..self
+        }
+    }
+
+    /// The vertex of the path the point is (1: the first surface the camera ray meets): an
+    /// allocation may choose differently at deeper vertices, where no per-pixel statistic
+    /// describes the point.
+    pub fn depth(&self) -> u32 {
+        self.depth
+    }
+
+    /// Whether the point is the first surface the camera ray meets, the one a pilot pass over
+    /// the image shades at camera sample 0 ([`crate::pilot`]).
+    pub fn is_primary(&self) -> bool {
+        self.primary
     }
 
     /// Also shows every phase to the AOV statistics `tally` (an observer of every phase, besides
@@ -155,11 +198,27 @@ impl<'a> LightSampling<'a> {
         } = &mut *self.buffers;
         let (scene, point, light) = (self.scene, self.point, self.light);
         let sampler = &mut *self.sampler;
+        let mut n_bsdf = split.n_bsdf;
+        if n_bsdf > 0
+            && let Some(slot) = self.continuation.as_deref_mut()
+            && slot.is_wanted()
+        {
+            *slot = ContinuationSlot::Drawn(draw_continuing_bsdf_sample(
+                scene,
+                point,
+                light,
+                sampler,
+                records,
+                densities,
+                Some(deferred),
+            ));
+            n_bsdf -= 1;
+        }
         draw_bsdf_samples(
             scene,
             point,
             light,
-            split.n_bsdf,
+            n_bsdf,
             sampler,
             records,
             densities,

@@ -250,17 +250,23 @@ impl Method for VarianceAware {
     }
 }
 
-fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
-    let samples = read_samples(params)?;
+/// The method of the parameters above but `samples` and `aovs`, for N = `samples` (also
+/// `path`'s at its first vertex).
+pub fn read_method(params: &mut Params, samples: u32) -> Result<VarianceAware, PluginError> {
     let pilot_samples = read_pilot_samples(params, 4, samples)?;
     let block = params.int(BLOCK)? as u32;
-    let method = VarianceAware {
+    Ok(VarianceAware {
         samples,
         pilot_samples,
         block,
         factors: BlockFactors::default(),
         estimates: PilotEstimates::default(),
-    };
+    })
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let samples = read_samples(params)?;
+    let method = read_method(params, samples)?;
     MisIntegrator::boxed(params, method)
 }
 

@@ -36,6 +36,24 @@ pub trait Weighting: Send + Sync {
     fn preprocess(&mut self, _scene: &Scene) {}
 }
 
+/// A weighting chosen at run time (e.g. by name, as `path` chooses its own): each phase's
+/// weights through one dynamic call, the same arithmetic.
+impl<W: Weighting + ?Sized> Weighting for Box<W> {
+    #[inline]
+    fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
+        (**self).weigh(phase, contributions)
+    }
+
+    #[inline]
+    fn needs_both_densities(&self) -> bool {
+        (**self).needs_both_densities()
+    }
+
+    fn preprocess(&mut self, scene: &Scene) {
+        (**self).preprocess(scene);
+    }
+}
+
 /// A per-sample weight: the weight of a sample whose technique has n·p = `mine` against the
 /// other technique's n·p = `other` at the sample's direction. Only called with `mine ≠ other`
 /// (equal products weigh ½ each); must satisfy w(a, b) + w(b, a) = 1 for all a, b ≥ 0,

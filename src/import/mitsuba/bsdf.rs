@@ -119,6 +119,7 @@ impl Converter {
             "roughconductor" => self.roughconductor(p),
             "plastic" => self.plastic(p, false),
             "roughplastic" => self.plastic(p, true),
+            "dielectric" | "thindielectric" | "roughdielectric" => self.dielectric(p),
             other => {
                 self.problem(p.line, format!("BSDF `{other}` is not converted"));
                 Ok(None)

@@ -1,9 +1,11 @@
-//! `<integrator>`: `direct` becomes lumis' `power` (the same power-heuristic estimator).
+//! `<integrator>`: `direct` becomes lumis' `power` (the same power-heuristic estimator); `path`,
+//! and `moment` around a `path`, become lumis' `path` with Mitsuba's estimator at every vertex
+//! (one light per vertex, one light and one BSDF sample, the power heuristic).
 
 use super::Converter;
-use super::properties::Value;
+use super::properties::{Properties, Value};
 use lumis_core::scene::description::PluginSpec;
-use lumis_integrators::{mis, power as power_plugin};
+use lumis_integrators::{mis, path, power as power_plugin};
 use roxmltree::Node;
 
 /// lumis' `power` integrator with `samples` per light.
@@ -11,20 +13,56 @@ pub(super) fn power(samples: i64) -> PluginSpec {
     PluginSpec::new(power_plugin::NAME).int(mis::SAMPLES, samples)
 }
 
+/// lumis' `path` as Mitsuba's `path` samples: at every vertex one light chosen uniformly, one
+/// light sample and one BSDF sample weighed by the power heuristic; `max_depth`, `rr_depth`
+/// and `hide_emitters` as given (Mitsuba's defaults otherwise, which are lumis').
+pub(super) fn mitsuba_path() -> PluginSpec {
+    PluginSpec::new(path::NAME)
+        .string(path::LIGHTS, path::ONE)
+        .int(mis::SAMPLES, 2)
+        .int(path::DEEP_SAMPLES, 2)
+        .string(path::WEIGHTING, power_plugin::NAME)
+}
+
 impl Converter {
     pub(super) fn integrator(&mut self, node: &Node) -> Result<(), String> {
         let mut p = self.properties(node)?;
-        self.objects_not_converted(&p.objects, "the integrator", false);
-        if p.kind != "direct" {
+        if p.kind == "moment" {
+            let nested: Vec<Node> = p
+                .objects
+                .iter()
+                .copied()
+                .filter(|o| o.tag_name().name() == "integrator")
+                .collect();
+            if let [inner] = nested.as_slice() {
+                self.note(
+                    p.line,
+                    "`moment` becomes the integrator it wraps: lumis writes no second-moment \
+                     layer (its studies measure variance across runs)",
+                );
+                self.finish(p, "the moment integrator");
+                return self.integrator(inner);
+            }
             self.problem(
                 p.line,
-                format!(
-                    "integrator `{}` is not converted: lumis renders direct lighting (`direct`)",
-                    p.kind
-                ),
+                "a `moment` integrator with other than one nested integrator is not converted",
             );
             return Ok(());
         }
+        self.objects_not_converted(&p.objects, "the integrator", false);
+        match p.kind.as_str() {
+            "direct" => self.direct(&mut p),
+            "path" => self.path_integrator(&mut p),
+            other => self.problem(
+                p.line,
+                format!("integrator `{other}` is not converted: lumis renders `direct` and `path`"),
+            ),
+        }
+        self.finish(p, "the integrator");
+        Ok(())
+    }
+
+    fn direct(&mut self, p: &mut Properties) {
         let mut count = |name: &str| match p.take(name) {
             Some((Value::Int(n), _)) if n > 0 => Some(n),
             Some((_, l)) => {
@@ -51,7 +89,45 @@ impl Converter {
             ),
         );
         self.integrator = Some(power(samples));
-        self.finish(p, "the integrator");
-        Ok(())
+    }
+
+    fn path_integrator(&mut self, p: &mut Properties) {
+        let mut spec = mitsuba_path();
+        let mut depth = |name: &str, min: i64| match p.take(name) {
+            Some((Value::Int(n), _)) if n >= min => Some(n),
+            Some((_, l)) => {
+                self.report
+                    .problem(l, format!("`{name}` must be an integer of at least {min}"));
+                None
+            }
+            None => None,
+        };
+        // Mitsuba reads both as unsigned: -1 is its "unbounded" (2³² − 1), as lumis' -1.
+        let max_depth = depth("max_depth", -1);
+        // 0 and 1 are the same rule in Mitsuba (its depth is at least 1 when it is tested).
+        let rr_depth = depth("rr_depth", 0).map(|d| d.max(1));
+        if let Some(d) = max_depth {
+            spec = spec.int(path::MAX_DEPTH, d.min(i32::MAX as i64));
+        }
+        if let Some(d) = rr_depth {
+            spec = spec.int(path::RR_DEPTH, d.min(i32::MAX as i64));
+        }
+        match p.take("hide_emitters") {
+            Some((Value::Bool(hide), _)) => {
+                spec.params
+                    .insert(path::HIDE_EMITTERS.into(), ron::Value::Bool(hide));
+            }
+            Some((_, l)) => self.problem(l, "`hide_emitters` must be a boolean"),
+            None => {}
+        }
+        self.note(
+            p.line,
+            "`path` becomes lumis `path` with lights \"one\", samples 2 and deep_samples 2, \
+             weighting \"power\": Mitsuba's estimator at every vertex (one light chosen uniformly, \
+             one light and one BSDF sample, the power heuristic), except that a BSDF sample counts \
+             the light it was drawn for only (the same mean); emitters' `sampling_weight` is not \
+             read",
+        );
+        self.integrator = Some(spec);
     }
 }

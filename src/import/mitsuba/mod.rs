@@ -2,12 +2,13 @@
 //!
 //! One file per Mitsuba plugin family, each an `impl Converter` block with one function per
 //! plugin type it converts: `integrator.rs`, `sensor.rs` (with the film and the sampler),
-//! `bsdf.rs`, `shape.rs`, `emitter.rs`. `properties.rs` reads attributes and properties (every
+//! `bsdf.rs` (with `dielectric.rs` for the dielectrics), `shape.rs`, `emitter.rs`. `properties.rs` reads attributes and properties (every
 //! property no converter reads is reported with its line), `transform.rs` reads `<transform>`,
 //! `paths.rs` rewrites file names. Plugin parameters are named through the plugin crates'
 //! constants (e.g. `diffuse::REFLECTANCE`), schema fields through the description's types.
 
 mod bsdf;
+mod dielectric;
 mod emitter;
 mod integrator;
 mod paths;
@@ -225,10 +226,10 @@ impl Converter {
         let integrator = self.integrator.take().unwrap_or_else(|| {
             self.note(
                 at,
-                "no <integrator>: Mitsuba would use `path`; lumis renders direct lighting with \
-                 `power`, samples 2",
+                "no <integrator>: Mitsuba's default, `path`, becomes lumis `path` as a `path` \
+                 element does",
             );
-            integrator::power(2)
+            integrator::mitsuba_path()
         });
         SceneDescription {
             camera,

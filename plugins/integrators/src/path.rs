@@ -1,0 +1,691 @@
+//! `path`: unidirectional path tracing with the MIS family at every vertex. At each surface a
+//! path meets that scatters light, every light (or one, `lights`) is estimated by the same
+//! per-light estimator the direct integrators use: N samples split between BSDF and light
+//! sampling by an allocation, combined by a weighting; BSDF samples that reach the light count
+//! its emission, weighted against light sampling. The path goes on along the first BSDF sample
+//! drawn at the vertex (a sample of the estimate, so the ray that found the emission is the ray
+//! the path follows), or along a BSDF sample of its own where no estimate drew one; emission is
+//! added only where the camera ray meets it directly. docs/integrators.md has the formulas and
+//! the argument that the estimate is unbiased.
+//!
+//! Parameters:
+//! - `max_depth` (integer, default -1, in [-1, 2147483647]): the longest path, in segments,
+//!   Mitsuba's convention: -1 unbounded, 0 black, 1 emitters seen directly only, 2 direct
+//!   lighting, d light that met at most d − 1 surfaces. Paths end at vertex 1024 whatever it
+//!   says ([`MAX_VERTICES`]).
+//! - `rr_depth` (integer, default 5, in [1, 2147483647]): the vertex from which Russian
+//!   roulette may end a path (Mitsuba's rule: it goes on with probability
+//!   min(max(throughput) · η², 0.95), η the product of the refractions' relative indices).
+//! - `hide_emitters` (bool, default false): emitters the camera sees directly are hidden, as
+//!   Mitsuba does: its rays pass through area emitters, and the environment behind is black.
+//! - `lights` (choice, default "all"): "all" estimates every light at every vertex, as the
+//!   direct integrators do; "one" one light per vertex, chosen uniformly (Mitsuba's), its
+//!   estimate divided by the probability of choosing it.
+//! - `samples` (integer, default 2, in [1, 1048576]): N, samples per light at the first vertex.
+//! - `deep_samples` (integer, default 2, in [1, 1048576]): N per light at the vertices past the
+//!   first, split n_B = ⌊α N + ½⌋ with α = `fixed` for the fixed allocation, ½ for the others.
+//! - `weighting` (choice, default "power"): how each phase's samples are weighed, at every
+//!   vertex: "balance", "power" (Mitsuba's), "max", "cutoff", "optimal_mis" (the direct
+//!   optimal weights, consistent rather than unbiased).
+//! - `threshold` (float, default 0.1, in [0, 1]): the cutoff heuristic's, with "cutoff".
+//! - `allocation` (choice, default "fixed"): how the first vertex's N samples are split, as
+//!   the direct plugin of that name: "fixed" (n_B = ⌊α N + ½⌋ with α = `fixed`, at every
+//!   vertex), "alpha", "exact_alpha", "cost_alpha", "pooled_alpha", "variance_aware" (which
+//!   weighs the first vertex's samples itself); their parameters below.
+//! - `fixed` (float, default 0.5, in [0, 1]): α of the fixed allocation.
+//! - The allocations' parameters, as their plugins document them, each only with an allocation
+//!   that reads it: `mode` (choice, default "integrated"); `alpha_samples` (integer, default 0);
+//!   `clamp` (interval, default (0.025, 0.975)); `variance` (choice, default "mixture");
+//!   `cost_ratio` (float, default 0); `pilot_samples` (integer, default 0);
+//!   `radius` (integer, default 2); `objective` (choice, default "exact");
+//!   `block` (integer, default 16).
+//! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (of the first
+//!   vertex, as the direct integrators write them) and "depth_samples" (the samples drawn at
+//!   each vertex depth, channels d1 … d7 and d8plus, summed over the pixel's camera samples).
+
+use crate::allocation::{Method, Weighted};
+use crate::alpha_family::{
+    ALPHA_SAMPLES_SPEC, CLAMP_SPEC, MODE_SPEC, VARIANCE_SPEC, pilot_samples_spec,
+};
+use crate::aovs::{self, AovRequest, LightTally};
+use crate::estimator::{ContinuationSlot, draw_continuation, emitted, estimate_delta_light};
+use crate::fixed_alpha::FixedAlpha;
+use crate::max::Maximum;
+use crate::mis::{SAMPLES_SPEC, read_samples};
+use crate::optimal_mis::DirectOptimal;
+use crate::power::Power;
+use crate::sampling::{LightSampling, PhaseBuffers};
+use crate::shading_point::ShadingPoint;
+use crate::weighting::{Balance, PerSample, Weighting};
+use crate::{
+    alpha, balance, cost_alpha, cutoff, exact_alpha, max, optimal_mis, pooled_alpha, power,
+    variance_aware,
+};
+use lumis_core::geometry::{Intersection, Ray};
+use lumis_core::integrator::{CameraSample, Integrator};
+use lumis_core::math::Rgb;
+use lumis_core::output::Aov;
+use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::IntegratorPlugin;
+use lumis_core::scene::Scene;
+
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "path";
+pub const MAX_DEPTH: &str = "max_depth";
+pub const RR_DEPTH: &str = "rr_depth";
+pub const HIDE_EMITTERS: &str = "hide_emitters";
+pub const LIGHTS: &str = "lights";
+pub const ALL: &str = "all";
+pub const ONE: &str = "one";
+pub const DEEP_SAMPLES: &str = "deep_samples";
+pub const WEIGHTING: &str = "weighting";
+pub const ALLOCATION: &str = "allocation";
+pub const FIXED: &str = "fixed";
+/// The AOV layer of samples per vertex depth.
+pub const DEPTH_SAMPLES: &str = "depth_samples";
+
+/// Paths end at this vertex whatever `max_depth` says: a bound on the work of one camera
+/// sample (a closed box of mirrors, Russian roulette off), so that a render stays cancellable.
+/// What it leaves out is the light of paths longer than 1024 segments, at most ρ^1024 of the
+/// rest for surfaces of albedo ρ (below 10⁻⁴⁶ for ρ = 0.9).
+pub const MAX_VERTICES: u32 = 1024;
+/// The probability with which Russian roulette lets a path go on is at most this (Mitsuba's).
+const RR_MAX_PROBABILITY: f32 = 0.95;
+/// Channels of the `depth_samples` layer: depths 1 to 7, then every depth from 8 on.
+const DEPTH_CHANNELS: usize = 8;
+/// Most emitters hidden along one camera ray ([`HIDE_EMITTERS`]): past them, black.
+const MAX_HIDDEN: u32 = 64;
+
+/// The layers `aovs` may ask for: the direct integrators' and [`DEPTH_SAMPLES`].
+const AOV_NAMES: &[&str] = &[
+    aovs::ALPHA,
+    aovs::SAMPLING_VARIANCE,
+    aovs::SAMPLE_COUNTS,
+    DEPTH_SAMPLES,
+];
+const WEIGHTINGS: &[&str] = &[
+    balance::NAME,
+    power::NAME,
+    max::NAME,
+    cutoff::NAME,
+    optimal_mis::NAME,
+];
+const ALLOCATIONS: &[&str] = &[
+    FIXED,
+    alpha::NAME,
+    exact_alpha::NAME,
+    cost_alpha::NAME,
+    pooled_alpha::NAME,
+    variance_aware::NAME,
+];
+
+static PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: MAX_DEPTH,
+        kind: ParamKind::Int {
+            default: Some(-1),
+            min: -1,
+            max: i32::MAX as i64,
+        },
+        unit: "segments",
+        description: "longest path (Mitsuba's convention): -1 unbounded, 1 emitters seen directly, 2 direct lighting",
+    },
+    ParamSpec {
+        name: RR_DEPTH,
+        kind: ParamKind::Int {
+            default: Some(5),
+            min: 1,
+            max: i32::MAX as i64,
+        },
+        unit: "",
+        description: "vertex from which Russian roulette may end a path",
+    },
+    ParamSpec {
+        name: HIDE_EMITTERS,
+        kind: ParamKind::Bool {
+            default: Some(false),
+        },
+        unit: "",
+        description: "hide the emitters the camera sees directly (area emitters are seen through, the environment is black)",
+    },
+    ParamSpec {
+        name: LIGHTS,
+        kind: ParamKind::Choice {
+            options: &[ALL, ONE],
+            default: ALL,
+        },
+        unit: "",
+        description: "all: every light at every vertex (as the direct integrators); one: one light per vertex, chosen uniformly (as Mitsuba)",
+    },
+    ParamSpec {
+        description: "N: samples per light at the first vertex",
+        kind: ParamKind::Int {
+            default: Some(2),
+            min: 1,
+            max: 1 << 20,
+        },
+        ..SAMPLES_SPEC
+    },
+    ParamSpec {
+        name: DEEP_SAMPLES,
+        kind: ParamKind::Int {
+            default: Some(2),
+            min: 1,
+            max: 1 << 20,
+        },
+        unit: "",
+        description: "N: samples per light at the vertices past the first",
+    },
+    ParamSpec {
+        name: WEIGHTING,
+        kind: ParamKind::Choice {
+            options: WEIGHTINGS,
+            default: power::NAME,
+        },
+        unit: "",
+        description: "how a phase's samples are weighed, at every vertex",
+    },
+    ParamSpec {
+        name: cutoff::THRESHOLD,
+        kind: ParamKind::Float {
+            default: Some(0.1),
+            min: 0.0,
+            max: 1.0,
+        },
+        unit: "",
+        description: "the cutoff heuristic's threshold (weighting cutoff)",
+    },
+    ParamSpec {
+        name: ALLOCATION,
+        kind: ParamKind::Choice {
+            options: ALLOCATIONS,
+            default: FIXED,
+        },
+        unit: "",
+        description: "how the first vertex's samples are split, as the direct plugin of that name (fixed: α = `fixed` at every vertex)",
+    },
+    ParamSpec {
+        name: FIXED,
+        kind: ParamKind::Float {
+            default: Some(0.5),
+            min: 0.0,
+            max: 1.0,
+        },
+        unit: "",
+        description: "α of the fixed allocation",
+    },
+    MODE_SPEC,
+    ALPHA_SAMPLES_SPEC,
+    CLAMP_SPEC,
+    VARIANCE_SPEC,
+    ParamSpec {
+        name: cost_alpha::COST_RATIO,
+        kind: ParamKind::Float {
+            default: Some(0.0),
+            min: 0.0,
+            max: 1000.0,
+        },
+        unit: "",
+        description: "cost_alpha's c_B / c_L (0: measured)",
+    },
+    pilot_samples_spec(
+        "M, the pilot's samples per light per pixel (0: N/8 for pooled_alpha, N/4 for variance_aware)",
+    ),
+    ParamSpec {
+        name: pooled_alpha::RADIUS,
+        kind: ParamKind::Int {
+            default: Some(2),
+            min: 0,
+            max: 64,
+        },
+        unit: "pixels",
+        description: "pooled_alpha's pooling radius",
+    },
+    ParamSpec {
+        name: pooled_alpha::OBJECTIVE,
+        kind: ParamKind::Choice {
+            options: &[
+                pooled_alpha::EXACT,
+                pooled_alpha::STRATIFIED,
+                pooled_alpha::SECOND_ORDER,
+            ],
+            default: pooled_alpha::EXACT,
+        },
+        unit: "",
+        description: "pooled_alpha's objective",
+    },
+    ParamSpec {
+        name: variance_aware::BLOCK,
+        kind: ParamKind::Int {
+            default: Some(16),
+            min: 1,
+            max: 4096,
+        },
+        unit: "pixels",
+        description: "variance_aware's blocks",
+    },
+    ParamSpec {
+        name: crate::mis::AOVS,
+        kind: ParamKind::List { options: AOV_NAMES },
+        unit: "",
+        description: "extra output layers: alpha, sampling_variance, samples (of the first vertex), depth_samples (samples per vertex depth)",
+    },
+];
+
+/// How many lights each vertex estimates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Lights {
+    All,
+    /// One, chosen uniformly.
+    One,
+}
+
+/// The layers asked for.
+#[derive(Clone, Copy, Debug, Default)]
+struct PathAovs {
+    /// The first vertex's, as the direct integrators write them.
+    first: AovRequest,
+    depth_samples: bool,
+}
+
+impl PathAovs {
+    /// Sums per pixel before the first vertex's: the depth channels.
+    fn depth_sums(&self) -> usize {
+        if self.depth_samples {
+            DEPTH_CHANNELS
+        } else {
+            0
+        }
+    }
+
+    /// Whether vertex `depth`'s lights are tallied.
+    fn tallied(&self, depth: u32) -> bool {
+        self.depth_samples || (depth == 1 && self.first.any())
+    }
+}
+
+/// The path tracer: the first vertex's method, the deeper vertices', and the path's rules.
+pub struct Path {
+    first: Box<dyn Method>,
+    deeper: Box<dyn Method>,
+    /// Vertices at which lights are estimated are those below it (Mitsuba's `max_depth`;
+    /// `u32::MAX` unbounded).
+    max_depth: u32,
+    rr_depth: u32,
+    hide_emitters: bool,
+    lights: Lights,
+    aovs: PathAovs,
+}
+
+/// A weighting by its name in [`WEIGHTINGS`].
+fn weighting_named(name: &str, threshold: f32) -> Box<dyn Weighting> {
+    match name {
+        balance::NAME => Box::new(PerSample(Balance)),
+        power::NAME => Box::new(PerSample(Power)),
+        max::NAME => Box::new(PerSample(Maximum)),
+        cutoff::NAME => Box::new(PerSample(cutoff::Cutoff { threshold })),
+        _ => Box::new(DirectOptimal),
+    }
+}
+
+/// The first vertex's method: allocation `name` ([`ALLOCATIONS`]) with its parameters, for N =
+/// `samples`, weighed by `weighting`.
+fn first_method(
+    params: &mut Params,
+    name: &str,
+    samples: u32,
+    weighting: Box<dyn Weighting>,
+) -> Result<Box<dyn Method>, PluginError> {
+    Ok(match name {
+        FIXED => {
+            let alpha = params.float(FIXED)? as f64;
+            Box::new(Weighted(FixedAlpha { alpha, samples }, weighting))
+        }
+        alpha::NAME => Box::new(Weighted(
+            alpha::read_allocation(params, samples)?,
+            weighting,
+        )),
+        exact_alpha::NAME => Box::new(Weighted(
+            exact_alpha::read_allocation(params, samples)?,
+            weighting,
+        )),
+        cost_alpha::NAME => Box::new(Weighted(
+            cost_alpha::read_allocation(params, samples)?,
+            weighting,
+        )),
+        pooled_alpha::NAME => Box::new(Weighted(
+            pooled_alpha::read_allocation(params, samples)?,
+            weighting,
+        )),
+        _ => Box::new(variance_aware::read_method(params, samples)?),
+    })
+}
+
+fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
+    let max_depth = match params.int(MAX_DEPTH)? {
+        -1 => u32::MAX,
+        d => d as u32,
+    };
+    let rr_depth = params.int(RR_DEPTH)? as u32;
+    let hide_emitters = params.bool(HIDE_EMITTERS)?;
+    let lights = if params.choice(LIGHTS)? == ONE {
+        Lights::One
+    } else {
+        Lights::All
+    };
+    let samples = read_samples(params)?;
+    let deep_samples = params.int(DEEP_SAMPLES)? as u32;
+    let weighting = params.choice(WEIGHTING)?;
+    let threshold = if weighting == cutoff::NAME {
+        params.float(cutoff::THRESHOLD)?
+    } else {
+        0.0
+    };
+    let allocation = params.choice(ALLOCATION)?;
+    let first = first_method(
+        params,
+        allocation,
+        samples,
+        weighting_named(weighting, threshold),
+    )?;
+    // The fixed allocation's α holds at every vertex; an adaptive one's statistics describe the
+    // first vertex only (issue 47 learns α at the others), which get the balanced split.
+    let deep_alpha = if allocation == FIXED {
+        params.float(FIXED)? as f64
+    } else {
+        0.5
+    };
+    let deeper = Box::new(Weighted(
+        FixedAlpha {
+            alpha: deep_alpha,
+            samples: deep_samples,
+        },
+        weighting_named(weighting, threshold),
+    ));
+    let names = params.list(crate::mis::AOVS)?;
+    let aovs = PathAovs {
+        first: AovRequest::from_names(&names),
+        depth_samples: names.contains(&DEPTH_SAMPLES),
+    };
+    Ok(Box::new(Path {
+        first,
+        deeper,
+        max_depth,
+        rr_depth,
+        hide_emitters,
+        lights,
+        aovs,
+    }))
+}
+
+/// What a path has gathered and carries: the radiance so far, the throughput of its vertices'
+/// samples, and the product of their relative indices of refraction.
+struct PathState {
+    radiance: Rgb,
+    throughput: Rgb,
+    eta: f32,
+}
+
+impl PathState {
+    /// Adds `value`, the radiance a vertex's estimate found, weighted by the throughput; a
+    /// value that is not a finite number (an overflow in a BSDF or a light) is dropped.
+    #[inline(always)]
+    fn add(&mut self, value: Rgb) {
+        let weighted = self.throughput * value;
+        if weighted.is_finite() {
+            self.radiance += weighted;
+        }
+    }
+}
+
+impl Path {
+    /// The camera ray's first surface, past the emitters it hides ([`HIDE_EMITTERS`]), and
+    /// whether any was hidden.
+    fn first_surface(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut hit: Option<Intersection>,
+    ) -> (Ray, Option<Intersection>, bool) {
+        if !self.hide_emitters {
+            return (ray, hit, false);
+        }
+        let mut hidden = 0;
+        while let Some(h) = hit.filter(|h| scene.emitter_of(h).is_some()) {
+            hidden += 1;
+            if hidden > MAX_HIDDEN {
+                return (ray, None, true);
+            }
+            ray = h.spawn_ray(ray.direction);
+            hit = scene
+                .geometry
+                .first_hit_leaving(&ray, &h)
+                .map(|first| scene.geometry.surface(&ray, &first));
+        }
+        (ray, hit, hidden > 0)
+    }
+
+    /// The lights' estimates at one vertex (`depth`, `primary` as [`LightSampling::at_vertex`]
+    /// says), each added to `path`; the continuation is taken from their BSDF samples while
+    /// `slot` wants it.
+    #[allow(clippy::too_many_arguments)]
+    fn estimate_vertex(
+        &self,
+        scene: &Scene,
+        sp: &ShadingPoint,
+        (depth, primary): (u32, bool),
+        sample: &mut CameraSample,
+        buffers: &mut PhaseBuffers,
+        slot: &mut ContinuationSlot,
+        sums: &mut [f64],
+        path: &mut PathState,
+    ) {
+        let lights = scene.emitters.len();
+        match self.lights {
+            Lights::All => {
+                for light in 0..lights {
+                    let value = self.estimate_light(
+                        scene,
+                        sp,
+                        light,
+                        (depth, primary),
+                        sample,
+                        buffers,
+                        slot,
+                        sums,
+                    );
+                    path.add(value);
+                }
+            }
+            Lights::One if lights > 0 => {
+                let u = sample.sampler.next_1d();
+                let light = ((u * lights as f32) as usize).min(lights - 1);
+                let value = self.estimate_light(
+                    scene,
+                    sp,
+                    light,
+                    (depth, primary),
+                    sample,
+                    buffers,
+                    slot,
+                    sums,
+                );
+                path.add(value * lights as f32);
+            }
+            Lights::One => {}
+        }
+    }
+
+    /// One light's estimate at a vertex, its statistics added to the pixel's sums when a layer
+    /// asks for them.
+    #[allow(clippy::too_many_arguments)]
+    fn estimate_light(
+        &self,
+        scene: &Scene,
+        sp: &ShadingPoint,
+        light: usize,
+        (depth, primary): (u32, bool),
+        sample: &mut CameraSample,
+        buffers: &mut PhaseBuffers,
+        slot: &mut ContinuationSlot,
+        sums: &mut [f64],
+    ) -> Rgb {
+        if scene.emitters[light].is_delta() {
+            return estimate_delta_light(scene, sp, light, &mut sample.sampler);
+        }
+        let method = if depth == 1 {
+            &self.first
+        } else {
+            &self.deeper
+        };
+        let tallied = self.aovs.tallied(depth);
+        let mut tally = LightTally::default();
+        let mut sampling =
+            LightSampling::new(scene, sp, light, sample.pixel, &mut sample.sampler, buffers)
+                .with_camera_sample(sample.index)
+                .at_vertex(depth, primary)
+                .with_continuation(slot);
+        if tallied {
+            sampling = sampling.with_tally(&mut tally);
+        }
+        let estimate = method.estimate(&mut sampling);
+        if tallied {
+            let (depth_sums, first_sums) = sums.split_at_mut(self.aovs.depth_sums());
+            if depth == 1 && self.aovs.first.any() {
+                self.aovs.first.add(first_sums, light, &estimate, &tally);
+            }
+            if let Some(count) = depth_sums.get_mut(depth_channel(depth)) {
+                *count += tally.samples() as f64;
+            }
+        }
+        estimate.value
+    }
+}
+
+/// The `depth_samples` channel of vertex `depth`.
+fn depth_channel(depth: u32) -> usize {
+    (depth as usize).min(DEPTH_CHANNELS) - 1
+}
+
+impl Integrator for Path {
+    fn aovs(&self, scene: &Scene) -> Vec<Aov> {
+        let mut layers = Vec::new();
+        if self.aovs.depth_samples {
+            let mut channels: Vec<String> = (1..DEPTH_CHANNELS).map(|d| format!("d{d}")).collect();
+            channels.push(format!("d{DEPTH_CHANNELS}plus"));
+            layers.push(Aov {
+                name: DEPTH_SAMPLES.into(),
+                channels,
+                preview: false,
+            });
+        }
+        layers.extend(self.aovs.first.declare(scene));
+        layers
+    }
+
+    fn pixel_sums(&self, scene: &Scene) -> usize {
+        self.aovs.depth_sums() + self.aovs.first.pixel_sums(scene)
+    }
+
+    fn preprocess(&mut self, scene: &Scene) {
+        self.first.preprocess(scene);
+        self.deeper.preprocess(scene);
+    }
+
+    fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
+        if self.max_depth == 0 {
+            return Rgb::ZERO;
+        }
+        let mut traced_now = None;
+        let hit = sample.hit(scene, &mut traced_now).copied();
+        let (mut ray, hit, hidden) = self.first_surface(scene, sample.ray, hit);
+        let Some(mut hit) = hit else {
+            return if self.hide_emitters {
+                Rgb::ZERO
+            } else {
+                scene.environment_radiance(ray.direction)
+            };
+        };
+        let mut path = PathState {
+            radiance: if self.hide_emitters {
+                Rgb::ZERO
+            } else {
+                emitted(scene, &hit, ray.direction)
+            },
+            throughput: Rgb::ONE,
+            eta: 1.0,
+        };
+        PhaseBuffers::with_thread_local(|buffers| {
+            for depth in 1..MAX_VERTICES {
+                // Mitsuba's vertex d − 1 samples lights when d < max_depth.
+                if depth >= self.max_depth {
+                    break;
+                }
+                let sp = ShadingPoint::new(scene, hit, -ray.direction);
+                // The next vertex is worth reaching if it will sample lights.
+                let goes_on = depth + 1 < self.max_depth && depth + 1 < MAX_VERTICES;
+                let mut slot = if goes_on {
+                    ContinuationSlot::Wanted
+                } else {
+                    ContinuationSlot::NotWanted
+                };
+                let vertex = (depth, depth == 1 && !hidden);
+                self.estimate_vertex(
+                    scene, &sp, vertex, sample, buffers, &mut slot, sums, &mut path,
+                );
+                let continuation = match slot {
+                    ContinuationSlot::NotWanted => break,
+                    ContinuationSlot::Drawn(continuation) => continuation,
+                    ContinuationSlot::Wanted => {
+                        // No estimate drew a BSDF sample: one of the path's own.
+                        if self.aovs.depth_samples {
+                            sums[depth_channel(depth)] += 1.0;
+                        }
+                        draw_continuation(scene, &sp, &mut sample.sampler)
+                    }
+                };
+                let Some(continuation) = continuation else {
+                    break;
+                };
+                path.throughput *= continuation.sample.weight;
+                path.eta *= continuation.sample.eta;
+                let largest = path.throughput.max_element();
+                if !(largest > 0.0 && largest.is_finite()) {
+                    break;
+                }
+                if depth >= self.rr_depth {
+                    let go_on = (largest * path.eta * path.eta).min(RR_MAX_PROBABILITY);
+                    if sample.sampler.next_1d() >= go_on {
+                        break;
+                    }
+                    path.throughput /= go_on;
+                }
+                let Some(next) = continuation.hit else {
+                    break;
+                };
+                hit = next;
+                ray = continuation.ray;
+            }
+        });
+        path.radiance
+    }
+
+    fn resolve(&self, scene: &Scene, sums: &[f64], _samples: u32, aovs: &mut [f32]) {
+        let depth = self.aovs.depth_sums();
+        for (value, sum) in aovs.iter_mut().zip(&sums[..depth]) {
+            *value = *sum as f32;
+        }
+        self.aovs
+            .first
+            .resolve(scene, &sums[depth..], &mut aovs[depth..]);
+    }
+}
+
+inventory::submit! {
+    IntegratorPlugin {
+        name: NAME,
+        description: "path tracing with the MIS family's per-light estimator (any weighting, any first-vertex allocation) at every vertex",
+        params: PARAMS,
+        create,
+    }
+}

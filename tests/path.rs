@@ -1,0 +1,529 @@
+//! The `path` integrator: direct lighting (`max_depth` 2, every light) is the direct
+//! integrators' image bit for bit, for every weighting and allocation; a closed furnace gives
+//! its closed form at every depth and unbounded; its extremes (depths 0, 1, 10⁶ and unbounded in
+//! a box of mirrors, a light in a closed glass sphere) end, are finite and warn where they must.
+
+use crate::common;
+use common::scene_file;
+use lumis::chi2::{FAMILY_FALSE_ALARM, sidak, test_seed, z_limit};
+use lumis::integrators::{aovs, path};
+use std::path::{Path, PathBuf};
+
+fn repo_path(relative: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+}
+
+fn render(path: &Path, overrides: &[String]) -> lumis::film::Film {
+    let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
+    common::render(path, &overrides, 2)
+}
+
+/// Each direct integrator (with its parameters) and the `path` configuration that must give its
+/// image: the same N, the same split and the same weights at the first vertex, nothing beyond.
+fn direct_and_path_pairs() -> Vec<(Vec<&'static str>, Vec<&'static str>)> {
+    let direct = |s: &[&'static str]| s.to_vec();
+    vec![
+        (
+            direct(&["type=balance"]),
+            direct(&["weighting=\"balance\""]),
+        ),
+        (direct(&["type=power"]), direct(&["weighting=\"power\""])),
+        (direct(&["type=max"]), direct(&["weighting=\"max\""])),
+        (
+            direct(&["type=cutoff", "threshold=0.3"]),
+            direct(&["weighting=\"cutoff\"", "threshold=0.3"]),
+        ),
+        (
+            direct(&["type=bsdf"]),
+            direct(&["weighting=\"balance\"", "fixed=1"]),
+        ),
+        (
+            direct(&["type=light"]),
+            direct(&["weighting=\"balance\"", "fixed=0"]),
+        ),
+        (
+            direct(&["type=optimal_mis"]),
+            direct(&["weighting=\"optimal_mis\""]),
+        ),
+        (
+            direct(&["type=alpha"]),
+            direct(&["weighting=\"balance\"", "allocation=\"alpha\""]),
+        ),
+        (
+            direct(&["type=alpha", "mode=\"preprocessed\"", "alpha_samples=24"]),
+            direct(&[
+                "weighting=\"balance\"",
+                "allocation=\"alpha\"",
+                "mode=\"preprocessed\"",
+                "alpha_samples=24",
+            ]),
+        ),
+        (
+            direct(&["type=exact_alpha", "variance=\"stratified\""]),
+            direct(&[
+                "weighting=\"balance\"",
+                "allocation=\"exact_alpha\"",
+                "variance=\"stratified\"",
+            ]),
+        ),
+        (
+            direct(&["type=cost_alpha", "cost_ratio=2"]),
+            direct(&[
+                "weighting=\"balance\"",
+                "allocation=\"cost_alpha\"",
+                "cost_ratio=2",
+            ]),
+        ),
+        (
+            direct(&["type=pooled_alpha"]),
+            direct(&["weighting=\"balance\"", "allocation=\"pooled_alpha\""]),
+        ),
+        (
+            direct(&["type=variance_aware", "block=4"]),
+            direct(&["allocation=\"variance_aware\"", "block=4"]),
+        ),
+    ]
+}
+
+fn bits(film: &lumis::film::Film) -> (Vec<[u32; 3]>, Vec<u32>) {
+    (
+        film.color
+            .iter()
+            .map(|c| c.to_array().map(f32::to_bits))
+            .collect(),
+        film.aov_data.iter().map(|v| v.to_bits()).collect(),
+    )
+}
+
+/// `path` with `max_depth` 2 and `lights: all` is direct lighting with its first vertex's
+/// method: every direct integrator's image (and AOVs) bit for bit, on scenes with area, point,
+/// directional and environment lights and mirrors.
+#[test]
+fn direct_lighting_is_the_direct_integrators_image_bit_for_bit() {
+    let scenes = [
+        "scenes/cornell.ron",
+        "scenes/lights.ron",
+        "scenes/envmap.ron",
+        "scenes/veach.ron",
+    ];
+    let mut compared = 0;
+    for scene in scenes {
+        let file = repo_path(scene);
+        for (k, (direct, path_params)) in direct_and_path_pairs().into_iter().enumerate() {
+            // AOVs with one method in three (they are sums over the same phases).
+            let aov_list = if k % 3 == 0 {
+                format!(
+                    "[{:?}, {:?}, {:?}]",
+                    aovs::ALPHA,
+                    aovs::SAMPLING_VARIANCE,
+                    aovs::SAMPLE_COUNTS
+                )
+            } else {
+                "[]".to_string()
+            };
+            let base = [
+                "film.width=20".to_string(),
+                "film.height=14".to_string(),
+                "sampler.spp=3".to_string(),
+            ];
+            let mut direct_set: Vec<String> = base.to_vec();
+            direct_set.push("integrator=(type: \"balance\")".into());
+            direct_set.extend(direct.iter().map(|p| format!("integrator.{p}")));
+            direct_set.push("integrator.samples=8".into());
+            direct_set.push(format!("integrator.aovs={aov_list}"));
+            let mut path_set: Vec<String> = base.to_vec();
+            path_set.push(format!("integrator=(type: {:?})", path::NAME));
+            path_set.push(format!("integrator.{}=2", path::MAX_DEPTH));
+            path_set.extend(path_params.iter().map(|p| format!("integrator.{p}")));
+            path_set.push("integrator.samples=8".into());
+            path_set.push(format!("integrator.aovs={aov_list}"));
+            let expected = render(&file, &direct_set);
+            let got = render(&file, &path_set);
+            assert_eq!(
+                expected.aovs, got.aovs,
+                "{scene}: {direct:?}: the same layers"
+            );
+            assert!(
+                bits(&expected) == bits(&got),
+                "{scene}: {direct:?} and path {path_params:?} differ"
+            );
+            compared += 1;
+        }
+    }
+    assert_eq!(compared, 4 * direct_and_path_pairs().len());
+}
+
+/// A closed box whose inside emits L_e and reflects diffusely with albedo ρ, seen from inside:
+/// the radiance everywhere is L_e Σ_{k<d} ρ^k = L_e (1 − ρ^d)/(1 − ρ) with paths of at most d
+/// segments (`max_depth` d, Mitsuba's convention: d = 1 the emission seen, d = 2 one
+/// reflection more), and L_e/(1 − ρ) unbounded.
+fn furnace_scene(rho: f64) -> String {
+    format!(
+        r#"Scene(
+    camera: (position: (0.1, 0.2, -0.3), target: (0.5, 0.3, 1), fov: 90),
+    film: (width: 16, height: 16),
+    sampler: (spp: 64, seed: 1),
+    integrator: (type: "path"),
+    bsdfs: {{ "grey": (type: "diffuse", reflectance: {rho}) }},
+    shapes: [
+        (type: "cube", bsdf: "grey", emitter: (type: "area", radiance: 1, two_sided: true)),
+    ],
+)"#
+    )
+}
+
+/// The furnace's closed form at every depth tested, for two weightings and both light
+/// selections (one light: the box is one light, chosen with probability 1, but through the
+/// selection's code), with Russian roulette from the default depth 5. Each case's 256 pixels are
+/// independent estimates of the same radiance: their mean is tested against the closed form
+/// (Student's t, Šidák over the cases at the suite's rate), and the test must detect a 1 % bias
+/// with probability 0.9.
+#[test]
+fn a_furnace_gives_its_closed_form_at_every_depth_and_unbounded() {
+    let rho = 0.6;
+    let (_dir, file) = scene_file("furnace.ron", &furnace_scene(rho));
+    let mut cases = Vec::new();
+    for depth in [1i64, 2, 3, 7, -1] {
+        for (weighting, lights) in [
+            ("balance", "all"),
+            ("power", "one"),
+            ("max", "all"),
+            ("cutoff", "one"),
+            ("optimal_mis", "all"),
+        ] {
+            cases.push((depth, weighting, lights));
+        }
+    }
+    let alpha = sidak(FAMILY_FALSE_ALARM, cases.len());
+    let limit = z_limit(alpha);
+    let mut failures = Vec::new();
+    for (i, &(depth, weighting, lights)) in cases.iter().enumerate() {
+        let expected = if depth < 0 {
+            1.0 / (1.0 - rho)
+        } else {
+            (1.0 - rho.powi(depth as i32)) / (1.0 - rho)
+        };
+        let film = render(
+            &file,
+            &[
+                format!("integrator.{}={depth}", path::MAX_DEPTH),
+                format!("integrator.{}={weighting:?}", path::WEIGHTING),
+                format!("integrator.{}={lights:?}", path::LIGHTS),
+                format!("sampler.seed={}", test_seed() * 100 + i as u64),
+                // Russian roulette adds variance: four times the samples unbounded.
+                format!("sampler.spp={}", if depth < 0 { 256 } else { 64 }),
+            ],
+        );
+        let values: Vec<f64> = film.color.iter().map(|c| c.x as f64).collect();
+        let (mean, se) = common::mean_and_standard_error(&values);
+        // At depth 1 every pixel is the emission exactly.
+        let se = se.max(4.0 * f32::EPSILON as f64 * expected);
+        let z = (mean - expected) / se;
+        let detected = (limit + 1.281_551_6) * se / expected;
+        eprintln!(
+            "furnace ρ = {rho}, max_depth {depth}, {weighting}, lights {lights}: {mean:.5} ± \
+             {se:.5}, closed form {expected:.5} (z = {z:+.2}, limit {limit:.2}); detects {:.2} %",
+            100.0 * detected
+        );
+        if z.abs() >= limit || !z.is_finite() {
+            failures.push(format!(
+                "max_depth {depth}, {weighting}, lights {lights}: {mean} ± {se} vs {expected} \
+                 (z = {z:.2}, seed {})",
+                test_seed()
+            ));
+        }
+        if detected > 0.01 {
+            failures.push(format!(
+                "max_depth {depth}: the test detects only biases above {:.2} %",
+                100.0 * detected
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A closed box of perfect mirrors around a small light: at `max_depth` 0 black, at 1 only
+/// the light seen directly, and unbounded (Russian roulette from the default depth, or from a
+/// depth no path reaches: then the hard cap of `path::MAX_VERTICES` vertices ends it) the
+/// render ends and every pixel is finite.
+#[test]
+fn a_box_of_mirrors_ends_at_every_depth() {
+    let text = r#"Scene(
+    camera: (position: (0.3, 0.2, -0.5), target: (0, 0, 1), fov: 70),
+    film: (width: 12, height: 8),
+    sampler: (spp: 2, seed: 5),
+    integrator: (type: "path"),
+    bsdfs: { "mirror": (type: "mirror"), "white": (type: "diffuse", reflectance: 0.8) },
+    shapes: [
+        (type: "cube", bsdf: "mirror"),
+        (type: "sphere", bsdf: "white", center: (0, 0, 0.5), radius: 0.1,
+         emitter: (type: "area", radiance: 1)),
+    ],
+)"#;
+    let (_dir, file) = scene_file("mirrors.ron", text);
+    for (max_depth, rr_depth) in [
+        (0i64, 5i64),
+        (1, 5),
+        (-1, 5),
+        (1_000_000, 5),
+        (-1, 2147483647),
+    ] {
+        let started = std::time::Instant::now();
+        let film = render(
+            &file,
+            &[
+                format!("integrator.{}={max_depth}", path::MAX_DEPTH),
+                format!("integrator.{}={rr_depth}", path::RR_DEPTH),
+            ],
+        );
+        common::assert_finite_outputs(&film, &format!("max_depth {max_depth}"));
+        let total: f32 = film.color.iter().map(|c| c.x).sum();
+        eprintln!(
+            "mirror box, max_depth {max_depth}, rr_depth {rr_depth}: sum {total}, {:?}",
+            started.elapsed()
+        );
+        match max_depth {
+            0 => assert_eq!(total, 0.0, "max_depth 0 is black"),
+            // The light seen directly: radiance 1 or 0 in each pixel's samples.
+            1 => assert!(film.color.iter().all(|c| c.x <= 1.0 + 1e-6)),
+            // The mirrors show the light again and again: more than the light alone.
+            _ => assert!(total > 0.0),
+        }
+    }
+}
+
+/// The only light a point inside a closed glass sphere: no path can reach it (a point is never
+/// hit, and light sampling through glass is blocked), so the image is black by design, and the
+/// scene's load says no light is likely to reach the camera.
+#[test]
+fn a_point_light_inside_closed_glass_is_black_with_a_warning() {
+    let text = r#"Scene(
+    camera: (position: (0, 1, -4), target: (0, 0, 0), fov: 40),
+    film: (width: 16, height: 12),
+    sampler: (spp: 4, seed: 2),
+    integrator: (type: "path"),
+    bsdfs: { "glass": (type: "dielectric"), "white": (type: "diffuse", reflectance: 0.8) },
+    shapes: [
+        (type: "sphere", bsdf: "glass", center: (0, 0, 0), radius: 1),
+        (type: "rectangle", bsdf: "white", transform: (scale: (10, 10, 1), translate: (0, -1, 0),
+         rotate: [(axis: (1, 0, 0), angle: -90)])),
+    ],
+    emitters: [(type: "point", position: (0, 0, 0), intensity: 10)],
+)"#;
+    let (_dir, file) = scene_file("glass.ron", text);
+    let loaded = common::load(&file, &[]).expect("loads");
+    assert!(
+        loaded.warnings.iter().any(|w| w.contains("no light")),
+        "{:?}",
+        loaded.warnings
+    );
+    let film = render(&file, &[]);
+    assert!(film.color.iter().all(|c| *c == glam::Vec3::ZERO));
+}
+
+/// Mitsuba's `path` (inside `moment`) converts to lumis' `path` with its depths and
+/// `hide_emitters`, and Mitsuba's estimator (one light per vertex, power heuristic); the three
+/// dielectrics convert with their named and numeric indices and roughness; what lumis does not
+/// take (an index beyond its range, an unknown name, anisotropic roughness) is named with its line.
+#[test]
+fn mitsuba_path_and_dielectrics_convert() {
+    let xml = r#"<scene version="3.0.0">
+    <integrator type="moment">
+        <integrator type="path">
+            <integer name="max_depth" value="7"/>
+            <integer name="rr_depth" value="3"/>
+            <boolean name="hide_emitters" value="true"/>
+        </integrator>
+    </integrator>
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
+    </sensor>
+    <shape type="sphere">
+        <bsdf type="dielectric"><string name="int_ior" value="water"/><float name="ext_ior" value="1"/></bsdf>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="2" y="0" z="0"/>
+        <bsdf type="roughdielectric">
+            <string name="distribution" value="ggx"/>
+            <float name="alpha" value="0.25"/>
+            <boolean name="sample_visible" value="false"/>
+        </bsdf>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-2" y="0" z="0"/>
+        <bsdf type="thindielectric"><float name="int_ior" value="1.4"/></bsdf>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="3" z="0"/></emitter>
+</scene>
+"#;
+    let (dir, _) = scene_file("glass.xml", xml);
+    let out = common::lumis(dir.path(), &["import", "glass.xml", "-o", "glass.ron"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("`sample_visible` is dropped"), "{stderr}");
+    let ron = std::fs::read_to_string(dir.path().join("glass.ron")).unwrap();
+    for needle in [
+        r#"type: "path""#,
+        "max_depth: 7",
+        "rr_depth: 3",
+        "hide_emitters: true",
+        r#"lights: "one""#,
+        r#"weighting: "power""#,
+        r#"type: "dielectric""#,
+        r#"int_ior: "water""#,
+        r#"type: "roughdielectric""#,
+        r#"distribution: "ggx""#,
+        "alpha: 0.25",
+        r#"type: "thindielectric""#,
+        "int_ior: 1.4",
+    ] {
+        assert!(ron.contains(needle), "`{needle}` missing in:\n{ron}");
+    }
+    let film = render(&dir.path().join("glass.ron"), &[]);
+    common::assert_finite_outputs(&film, "converted glass");
+
+    let bad = r#"<scene version="3.0.0">
+    <integrator type="path"><integer name="max_depth" value="-2"/></integrator>
+    <shape type="sphere"><bsdf type="dielectric"><float name="int_ior" value="1e9"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="dielectric"><string name="ext_ior" value="glass"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="roughdielectric">
+        <float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.3"/>
+    </bsdf></shape>
+</scene>
+"#;
+    let (dir, _) = scene_file("bad.xml", bad);
+    let out = common::lumis(dir.path(), &["import", "bad.xml", "-o", "bad.ron"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    for needle in [
+        "bad.xml:2: `max_depth` must be an integer of at least -1",
+        "bad.xml:3: `int_ior` 1000000000 is outside lumis' [0.000001, 1000000]",
+        "bad.xml:4: `ext_ior`: unknown index of refraction `glass`",
+        "anisotropic roughness is not converted",
+    ] {
+        assert!(stderr.contains(needle), "`{needle}` missing in:\n{stderr}");
+    }
+}
+
+/// Every weighting, the paper's α at the first vertex, and one light per vertex converge to the
+/// mean of `path` with the balance heuristic on the Cornell box with its indirect light
+/// (`max_depth` 4: three bounces), by the repo's same-mean test (whole image and blocks, power
+/// required: a 2 % bias detected with probability 0.9; tests/integrators.rs).
+#[test]
+fn every_weighting_gives_the_same_mean_with_indirect_light() {
+    let file = repo_path("scenes/cornell.ron");
+    let path_with = |extra: &[String]| -> Vec<String> {
+        [
+            vec![
+                format!("integrator.type={}", path::NAME),
+                format!("integrator.{}=4", path::MAX_DEPTH),
+                format!("integrator.{}=4", path::DEEP_SAMPLES),
+            ],
+            extra.to_vec(),
+        ]
+        .concat()
+    };
+    let weighting = |w: &str| format!("integrator.{}={w:?}", path::WEIGHTING);
+    let reference = path_with(&[weighting("balance")]);
+    let mut configurations: Vec<(String, Vec<String>)> = ["power", "max", "cutoff", "optimal_mis"]
+        .into_iter()
+        .map(|w| (format!("path {w}"), path_with(&[weighting(w)])))
+        .collect();
+    configurations.push((
+        "path power, one light".into(),
+        path_with(&[
+            weighting("power"),
+            format!("integrator.{}={:?}", path::LIGHTS, path::ONE),
+        ]),
+    ));
+    configurations.push((
+        "path balance, alpha at the first vertex".into(),
+        path_with(&[
+            weighting("balance"),
+            format!("integrator.{}=\"alpha\"", path::ALLOCATION),
+        ]),
+    ));
+    crate::integrators::same_mean(
+        "Cornell box, max_depth 4",
+        &file,
+        16,
+        &reference,
+        &configurations,
+        0.02,
+    );
+}
+
+/// `hide_emitters`: an area light filling the view, facing the camera in front of a white wall
+/// it does not light, shows its radiance, and nothing when hidden (camera rays pass through it,
+/// as Mitsuba's do, to the unlit wall).
+#[test]
+fn hidden_emitters_are_seen_through() {
+    let text = r#"Scene(
+    camera: (position: (0, 0, -3), target: (0, 0, 0), fov: 20),
+    film: (width: 8, height: 8),
+    sampler: (spp: 2, seed: 4),
+    integrator: (type: "path"),
+    bsdfs: { "white": (type: "diffuse", reflectance: 0.8) },
+    shapes: [
+        (type: "rectangle", bsdf: "white", transform: (scale: (5, 5, 1), rotate: [(axis: (0, 1, 0), angle: 180)]),
+         emitter: (type: "area", radiance: 2)),
+        (type: "rectangle", bsdf: "white", transform: (scale: (9, 9, 1), translate: (0, 0, 1),
+         rotate: [(axis: (0, 1, 0), angle: 180)])),
+    ],
+)"#;
+    let (_dir, file) = scene_file("hidden.ron", text);
+    let seen = render(&file, &[]);
+    assert!(
+        seen.color.iter().all(|c| (c.x - 2.0).abs() < 1e-5),
+        "the light seen: {:?}",
+        &seen.color[..4]
+    );
+    let hidden = render(&file, &[format!("integrator.{}=true", path::HIDE_EMITTERS)]);
+    assert!(
+        hidden.color.iter().all(|c| *c == glam::Vec3::ZERO),
+        "hidden: {:?}",
+        &hidden.color[..4]
+    );
+}
+
+/// The `depth_samples` layer counts the samples drawn at each vertex depth, summed over a
+/// pixel's camera samples: N = `samples` per non-delta light at vertex 1, `deep_samples` per
+/// light at vertex 2, nothing at vertex 3 and deeper with `max_depth` 3 (vertex 3 only ends
+/// paths of 3 segments).
+#[test]
+fn depth_samples_count_each_vertex_depth() {
+    let file = repo_path("scenes/cornell.ron");
+    let (spp, samples, deep) = (2.0f32, 8.0f32, 4.0f32);
+    let film = render(
+        &file,
+        &[
+            "film.width=16".into(),
+            "film.height=12".into(),
+            format!("sampler.spp={spp}"),
+            format!("integrator=(type: {:?})", path::NAME),
+            format!("integrator.{}=3", path::MAX_DEPTH),
+            format!("integrator.samples={samples}"),
+            format!("integrator.{}={deep}", path::DEEP_SAMPLES),
+            format!("integrator.aovs=[{:?}]", path::DEPTH_SAMPLES),
+        ],
+    );
+    let channels = film.aov(path::DEPTH_SAMPLES).expect("the layer").channels();
+    assert_eq!(channels.len(), 8);
+    let first_max = channels[0].iter().cloned().fold(0.0, f32::max);
+    let lights = first_max / (spp * samples);
+    assert!(lights >= 1.0 && lights.fract() == 0.0, "{first_max}");
+    for (d1, d2) in channels[0].iter().zip(&channels[1]) {
+        // Each camera sample meets a surface (N per light there) or leaves the scene.
+        assert!(
+            (d1 / (samples * lights)).fract() == 0.0 && *d1 <= first_max,
+            "{d1}"
+        );
+        assert!(
+            (d2 / (deep * lights)).fract() == 0.0 && *d2 <= spp * deep * lights,
+            "{d2}"
+        );
+    }
+    assert!(channels[1].iter().any(|&d2| d2 > 0.0));
+    assert!(channels[2..].iter().flatten().all(|&d| d == 0.0));
+}
