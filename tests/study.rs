@@ -240,9 +240,29 @@ fn reduced_study_has_curves_trade_and_intervals_on_every_ratio_and_writes_only_i
     for t in &trade {
         assert_eq!(number(t, "target_budget"), 8.0);
         let what = format!("{} {}", t["scene"], t["integrator"]);
+        // Balance against itself is exactly 1. Where a reading lies against the measured
+        // times (its extent) depends on the machine's timing: tested with synthetic times in
+        // `study::collect`; here only that every reading has one.
         if t["integrator"] == "balance" {
             assert_eq!(number(t, "speedup"), 1.0, "{what}");
-            assert_eq!(t["speedup_extent"], "within", "{what}");
+        }
+        for reading in [
+            "time_to_target",
+            "speedup",
+            "equal_time_ratio",
+            "speedup_over_headline",
+        ] {
+            let extent = &t[&format!("{reading}_extent")];
+            let expected: &[&str] = if t[reading].is_empty() {
+                &[""]
+            } else {
+                &["within", "extrapolated", "below", "above"]
+            };
+            assert!(
+                expected.contains(&extent.as_str()),
+                "{what}: {reading} `{}`, extent `{extent}`",
+                t[reading]
+            );
         }
         // The headline α against itself: the same curve read twice.
         if t["integrator"] == "alpha" && !t["speedup_over_headline"].is_empty() {
@@ -276,14 +296,14 @@ fn reduced_study_has_curves_trade_and_intervals_on_every_ratio_and_writes_only_i
             format!("panels/{scene}.png"),
         ] {
             assert!(md.contains(&format!("(out/{file})")), "{file} linked");
-            let image = image::open(out.join(&file)).expect("a readable PNG");
-            assert!(image.width() > 48, "{file}");
+            let image = common::read_png(&out.join(&file));
+            assert!(image.width > 48, "{file}");
         }
     }
     for plot in ["summary", "clamp", "m", "convergence"] {
         let file = format!("plots/{plot}.png");
         assert!(md.contains(&format!("(out/{file})")), "{file} linked");
-        image::open(out.join(&file)).expect("a readable PNG");
+        common::read_png(&out.join(&file));
     }
 
     // The references are cached in the cache directory, one per scene; nothing is written

@@ -7,7 +7,7 @@ use crate::film::Film;
 use crate::math::Rgb;
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, IntegerBounds, Layer,
-    LayerAttributes, ReadChannels, ReadLayers, Text, Vec2, WritableImage,
+    LayerAttributes, LineOrder, ReadChannels, ReadLayers, Text, Vec2, WritableImage,
     read_all_flat_layers_from_file,
 };
 use std::io::Write as _;
@@ -204,10 +204,17 @@ fn exr_image(film: &Film, metadata: &Metadata) -> Image<Layer<AnyChannels<FlatSa
             AttributeValue::Text(Text::from(text.as_str())),
         );
     }
+    // Blocks are compressed in parallel and written in increasing order: with the crate's
+    // default (unspecified order) they are written as they finish, so the chunk table, and the
+    // file's bytes, would depend on the threads' timing.
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
     let layer = Layer::new(
         size,
         attributes,
-        Encoding::FAST_LOSSLESS,
+        encoding,
         AnyChannels::sort(channels.into()),
     );
     let mut image = Image::from_layer(layer);
@@ -230,16 +237,28 @@ pub fn write_rgb8_png(
     })
 }
 
+/// Encodes 8-bit RGB pixels (row-major) as a PNG: adaptive filters and fast compression (a
+/// preview is written at every render; its size matters less).
 fn encode_png(
     file: &mut std::fs::File,
     width: u32,
     height: u32,
     bytes: Vec<u8>,
 ) -> Result<(), String> {
-    let image = image::RgbImage::from_raw(width, height, bytes).ok_or("bad image size")?;
-    image
-        .write_to(&mut std::io::BufWriter::new(file), image::ImageFormat::Png)
-        .map_err(|e| e.to_string())
+    if bytes.len() != width as usize * height as usize * 3 {
+        return Err(format!(
+            "{} bytes for a {width}×{height} RGB image",
+            bytes.len()
+        ));
+    }
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    encoder.set_filter(png::Filter::Adaptive);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    writer.write_image_data(&bytes).map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())
 }
 
 /// The sRGB transfer function.
@@ -520,7 +539,7 @@ pub fn read_exr_metadata(path: &Path) -> Result<Metadata, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use exr::prelude::{Blocks, Compression, ImageAttributes, LineOrder, SpecificChannels};
+    use exr::prelude::{Blocks, Compression, ImageAttributes, SpecificChannels};
 
     /// A 37 × 21 RGB pattern (x, y, ½) encoded in memory with `blocks` and `compression`, as
     /// one part or as two.
@@ -549,6 +568,27 @@ mod tests {
             image.write().to_buffered(&mut bytes).unwrap();
         }
         bytes.into_inner()
+    }
+
+    /// A PNG decodes to the bytes it was given; a buffer of the wrong size is refused.
+    #[test]
+    fn png_round_trips_and_refuses_a_wrong_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.png");
+        let (w, h) = (13u32, 7u32);
+        let bytes: Vec<u8> = (0..w * h * 3).map(|i| (i * 37 % 251) as u8).collect();
+        write_rgb8_png(&path, w, h, bytes.clone()).unwrap();
+        let file = std::fs::File::open(&path).unwrap();
+        let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+            .read_info()
+            .unwrap();
+        let mut decoded = vec![0; reader.output_buffer_size().unwrap()];
+        let frame = reader.next_frame(&mut decoded).unwrap();
+        assert_eq!((frame.width, frame.height), (w, h));
+        assert_eq!(frame.color_type, png::ColorType::Rgb);
+        assert_eq!(decoded, bytes);
+        let e = write_rgb8_png(&path, w + 1, h, bytes).unwrap_err();
+        assert!(e.reason.contains("bytes for a 14×7 RGB image"), "{e}");
     }
 
     /// Scan lines and tiles, one part and two, each compressed or not.

@@ -75,19 +75,41 @@ pub struct Row {
     pub ratios: Ratios,
 }
 
-/// A quantity read off a curve: between its measured budgets, extrapolated by up to a factor
+/// A quantity read off a curve: between its measured times, extrapolated by up to a factor
 /// of two in time beyond them, or further (then only a bound is reported).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub enum Extent {
     Within,
     Extrapolated,
-    /// Below the smallest budget's time ÷ 2 (`false`) or above the largest's × 2 (`true`).
+    /// Below the least measured time ÷ 2 (`false`) or above the greatest × 2 (`true`).
     Beyond {
         above: bool,
     },
 }
 
 impl Extent {
+    /// Where a reading at `log_time` lies against a curve's measured times (`log_times`, in
+    /// budget order). Against the least and the greatest of them, not the first and the last:
+    /// at small budgets a larger budget can be measured faster, and the curve, piecewise linear
+    /// through its points, is read between two measured points anywhere in that range.
+    pub fn of(log_times: &[f64], log_time: f64) -> Extent {
+        let (least, greatest) = log_times
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+                (lo.min(t), hi.max(t))
+            });
+        let margin = std::f64::consts::LN_2;
+        if log_time < least - margin {
+            Extent::Beyond { above: false }
+        } else if log_time > greatest + margin {
+            Extent::Beyond { above: true }
+        } else if log_time < least || log_time > greatest {
+            Extent::Extrapolated
+        } else {
+            Extent::Within
+        }
+    }
+
     /// The less reliable of two extents (a value read off two curves is as far out as the
     /// farther of its two readings).
     fn farther(self, other: Extent) -> Extent {
@@ -641,17 +663,8 @@ fn trade(
     let values: Vec<f64> = logs.iter().map(|j| j.value).collect();
     // Where `log_time` lies against the measured times of curve `which`.
     let extent = |which: usize, log_time: f64| -> Extent {
-        let (first, last) = (values[2 * which * n], values[2 * (which * n + n - 1)]);
-        let margin = std::f64::consts::LN_2;
-        if log_time < first - margin {
-            Extent::Beyond { above: false }
-        } else if log_time > last + margin {
-            Extent::Beyond { above: true }
-        } else if log_time < first || log_time > last {
-            Extent::Extrapolated
-        } else {
-            Extent::Within
-        }
+        let log_times: Vec<f64> = (0..n).map(|j| values[2 * (which * n + j)]).collect();
+        Extent::of(&log_times, log_time)
     };
     let reading = |log_time: f64, f: &dyn Fn(&[f64]) -> f64| {
         log_time.is_finite().then(|| Reading {
@@ -911,6 +924,58 @@ mod tests {
             {
                 assert_eq!(a.relative_variance, b.relative_variance, "{}", a.label);
             }
+        }
+    }
+
+    /// Where a reading lies is a function of the curve's measured times alone: synthetic times,
+    /// in budget order and not (a larger budget measured faster, as timing noise at small
+    /// budgets can make it).
+    #[test]
+    fn readings_are_within_between_the_least_and_the_greatest_measured_time() {
+        let logs = |times: [f64; 4]| times.map(f64::ln);
+        for times in [logs([1.0, 2.0, 4.0, 8.0]), logs([2.0, 1.0, 4.0, 8.0])] {
+            let at = |t: f64| Extent::of(&times, t.ln());
+            for t in [1.0, 1.5, 2.0, 3.0, 8.0] {
+                assert_eq!(at(t), Extent::Within, "{t} in {times:?}");
+            }
+            assert_eq!(at(0.6), Extent::Extrapolated);
+            assert_eq!(at(15.0), Extent::Extrapolated);
+            assert_eq!(at(0.4), Extent::Beyond { above: false });
+            assert_eq!(at(17.0), Extent::Beyond { above: true });
+        }
+    }
+
+    /// Balance read against itself at its own target is a measured point of its curve: a
+    /// speed-up of exactly 1, within the curve, even when the target budget's time is the
+    /// least of the curve (synthetic times; with measured ones, noise at small budgets can
+    /// order them so).
+    #[test]
+    fn balance_at_its_own_target_is_within_its_curve_whatever_the_times() {
+        let (config, plan, luminance, mut results) = synthetic_study("balance,alpha,light");
+        let balance = &plan.curves[plan.balance];
+        assert_eq!(plan.target, 1, "the middle of 4, 8, 16");
+        for result in &mut results {
+            let Role::Run { configuration, run } = result.cell.role else {
+                continue;
+            };
+            if let Some(j) = balance.iter().position(|&c| c == configuration) {
+                result.cpu_time = [0.02, 0.015, 0.04][j] * (1.0 + 0.01 * f64::from(run));
+            }
+        }
+        let analysis = analyse(&config, &plan, &luminance, &mut results.into_iter());
+        let t = analysis
+            .trade
+            .iter()
+            .find(|t| t.label == "balance")
+            .expect("balance's trade");
+        let speedup = t.speedup.expect("balance reaches its own target");
+        assert_eq!(speedup.estimate.value, 1.0);
+        for (what, reading) in [
+            ("speedup", t.speedup),
+            ("time to target", t.time_to_target),
+            ("equal-time ratio", t.equal_time_ratio),
+        ] {
+            assert_eq!(reading.map(|r| r.extent), Some(Extent::Within), "{what}");
         }
     }
 

@@ -341,10 +341,14 @@ pub fn reach(points: &[(f64, f64)], level: f64) -> Option<Reach> {
         let ((x0, y0), (x1, y1)) = (w[0], w[1]);
         let (lo, hi) = (y0.min(y1), y0.max(y1));
         if lo <= level && level <= hi {
-            let x = if y1 == y0 {
+            // At a point, that point's x (the interpolation can miss it by a rounding error);
+            // between two, an x between theirs.
+            let x = if level == y0 {
                 x0
+            } else if level == y1 {
+                x1
             } else {
-                x0 + (level - y0) * (x1 - x0) / (y1 - y0)
+                (x0 + (level - y0) * (x1 - x0) / (y1 - y0)).clamp(x0.min(x1), x0.max(x1))
             };
             return Some(Reach::Within(x));
         }
@@ -452,5 +456,30 @@ mod tests {
         assert_eq!(reach(&line, 0.5), Some(Reach::BeforeFirst(-0.5)));
         assert_eq!(reach(&[(0.0, 1.0), (1.0, 1.0)], 0.0), None);
         assert_eq!(reach(&line[..1], -0.5), None);
+    }
+
+    /// A level met at a point is reached at that point's x exactly, and between two points
+    /// within their x, whatever the rounding: what lets a curve read at its own measured point
+    /// be `Within` its measured times.
+    #[test]
+    fn a_level_met_at_a_point_is_reached_at_its_x() {
+        // Logs of times and errors whose interpolation, x0 + (y1 − y0)(x1 − x0)/(y1 − y0),
+        // rounds above x1, the greatest time.
+        let (x0, x1) = (0.1_f64.ln(), 0.2_f64.ln());
+        let (y0, y1) = (0.3_f64.ln(), 0.2_f64.ln());
+        assert!(
+            x0 + (y1 - y0) * (x1 - x0) / (y1 - y0) > x1,
+            "a case that rounds up"
+        );
+        let points = [(x0, y0), (x1, y1)];
+        assert_eq!(reach(&points, y1), Some(Reach::Within(x1)));
+        assert_eq!(reach(&points, y0), Some(Reach::Within(x0)));
+        // Times out of budget order (a larger budget measured faster): between the two.
+        for level in [0.3, 0.25, 0.2000001, 0.2].map(f64::ln) {
+            let Some(Reach::Within(x)) = reach(&[(x1, y0), (x0, y1)], level) else {
+                panic!("{level} is reached between the points")
+            };
+            assert!(x0 <= x && x <= x1, "{x} not in [{x0}, {x1}]");
+        }
     }
 }

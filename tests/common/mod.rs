@@ -62,9 +62,8 @@ pub fn integrators() -> Vec<&'static str> {
 }
 
 /// The example plugin library `lumis-oren-nayar`, which cargo builds with the tests (a
-/// dev-dependency, built with its cdylib beside this test's executable), placed where the
-/// bundled scene `scenes/plugin.ron` looks for it: `target/debug/liblumis_oren_nayar.so` on Linux
-/// (a hard link, or a copy, made once per test binary and renamed into place).
+/// dev-dependency, its cdylib beside this test's executable): found from the executable's own
+/// path, wherever the target directory is (`CARGO_TARGET_DIR`, `--target-dir`).
 pub fn example_library() -> &'static Path {
     static LIBRARY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     LIBRARY.get_or_init(|| {
@@ -73,27 +72,48 @@ pub fn example_library() -> &'static Path {
             std::env::consts::DLL_PREFIX,
             std::env::consts::DLL_SUFFIX
         );
-        // target/<profile>/deps/<this test>: the library is in the same directory.
-        let exe = std::env::current_exe().unwrap();
-        let deps = exe.parent().unwrap();
-        let built = deps.join(&file);
+        // <target dir>/<profile>/deps/<this test>: the library is in the same directory.
+        let exe = std::env::current_exe().expect("the test executable's path");
+        let built = exe.with_file_name(&file);
         assert!(
             built.exists(),
             "{} not built (it is a dev-dependency of lumis: `cargo test` builds it)",
             built.display()
         );
-        // target/debug, whatever profile the tests run under.
-        let target = deps.parent().unwrap().with_file_name("debug");
-        std::fs::create_dir_all(&target).unwrap();
-        let path = target.join(&file);
-        let tmp = target.join(format!(".{file}.{}.tmp", std::process::id()));
-        let _ = std::fs::remove_file(&tmp);
-        if std::fs::hard_link(&built, &tmp).is_err() {
-            std::fs::copy(&built, &tmp).unwrap();
-        }
-        std::fs::rename(&tmp, &path).unwrap();
-        path
+        built
     })
+}
+
+/// A PNG file, decoded.
+pub struct Png {
+    pub width: u32,
+    pub height: u32,
+    pub color: png::ColorType,
+    pub bytes: Vec<u8>,
+}
+
+/// Decodes the PNG at `path` whole; panics, naming the file, if it is not a complete PNG.
+pub fn read_png(path: &Path) -> Png {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut bytes = vec![
+        0;
+        reader
+            .output_buffer_size()
+            .expect("a PNG that fits in memory")
+    ];
+    let frame = reader
+        .next_frame(&mut bytes)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    bytes.truncate(frame.buffer_size());
+    Png {
+        width: frame.width,
+        height: frame.height,
+        color: frame.color_type,
+        bytes,
+    }
 }
 
 /// Mean of independent estimates and its standard error (from their sample variance).
