@@ -67,7 +67,8 @@ pub mod fuzzing {
             return false;
         };
         let dir = Path::new("/nonexistent");
-        crate::import::convert(text, dir, dir, &[]).is_ok_and(|c| c.problems.is_empty())
+        crate::import::convert(text, &dir.join("scene.xml"), dir, &[])
+            .is_ok_and(|c| c.problems.is_empty())
     }
 
     /// Decodes an EXR image from its bytes.

@@ -695,7 +695,8 @@ fn as_read(mut description: SceneDescription) -> SceneDescription {
 #[test]
 fn a_converted_scene_parses_back_into_the_same_description() {
     let converts = |xml| {
-        let c = lumis::import::convert(xml, Path::new("xml"), Path::new("out"), &[]).unwrap();
+        let c =
+            lumis::import::convert(xml, Path::new("xml/scene.xml"), Path::new("out"), &[]).unwrap();
         assert_eq!(c.problems, [], "{xml}");
         c
     };
