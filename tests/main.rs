@@ -15,10 +15,12 @@ mod extremes;
 mod import;
 mod import_hostile;
 mod integrators;
+mod module_layers;
 mod one_point;
 mod render;
 mod robustness;
 mod study;
+mod surfaces;
 
 /// Every `.rs` file and directory module in the `tests/` of each package whose test discovery is
 /// off (this one, `lumis-bsdfs`, `lumis-emitters`) is declared in its `tests/main.rs`: one that

@@ -10,7 +10,7 @@ use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply, serialized};
 use crate::bsdf::{Absorber, Bsdf, BsdfFlags};
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::{SceneError, did_you_mean};
-use crate::geometry::{self, Geometry, Mesh, ShapeGeometry, Sphere};
+use crate::geometry::{self, Geometry, Mesh, ShapeGeometry, Sphere, UvMapping};
 use crate::integrator::Integrator;
 use crate::output::Window;
 use crate::params::Params;
@@ -156,6 +156,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
 
     // Shapes, with their area emitters.
     let mut geometries = Vec::new();
+    let mut uv_mappings = Vec::new();
     let mut shape_bsdf = Vec::new();
     let mut shape_emitter = Vec::new();
     let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
@@ -184,7 +185,8 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                         }
                     ))
                 })?;
-                parts.push((bsdf, build_shape(shape, base).map_err(shape_err)?));
+                let (geometry, mapping) = build_shape(shape, base).map_err(shape_err)?;
+                parts.push((bsdf, geometry, mapping));
             }
             None => {
                 for (material, spec, geometry) in
@@ -200,11 +202,11 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                     bsdf_flags.push(bsdf.flags());
                     one_sided.push(false);
                     bsdfs.push(bsdf);
-                    parts.push((bsdfs.len() - 1, geometry));
+                    parts.push((bsdfs.len() - 1, geometry, UvMapping::Intrinsic));
                 }
             }
         }
-        for (bsdf, geometry) in parts {
+        for (bsdf, geometry, mapping) in parts {
             check_shape(&geometry).map_err(|e| err(format!("{label}: {e}")))?;
             if shape.emitter.is_some()
                 && let ShapeGeometry::Mesh(mesh) = &geometry
@@ -233,6 +235,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                 }
             });
             geometries.push(geometry);
+            uv_mappings.push(mapping);
         }
     }
     let mut environment = None;
@@ -301,7 +304,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         jitter: desc.sampler.jitter,
         filter,
         seed: desc.sampler.seed,
-        geometry: Geometry::new(geometries),
+        geometry: Geometry::new(geometries).with_uv_mappings(uv_mappings),
         bsdfs,
         bsdf_flags,
         emitters,
@@ -454,7 +457,12 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
     Ok(())
 }
 
-fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, ShapeError> {
+/// The shape's geometry, and how its points map to texture coordinates (Mitsuba's
+/// parameterisations: in the shape's own frame for a sphere and a disk).
+fn build_shape(
+    shape: &ShapeDescription,
+    base: &Path,
+) -> Result<(ShapeGeometry, UvMapping), ShapeError> {
     let scene_err = |m: String| ShapeError::Scene(m);
     check_shape_fields(shape)?;
     let matrix = transform_matrix(&shape.transform).map_err(scene_err)?;
@@ -515,13 +523,25 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
                     scale.to_array()
                 )));
             }
-            return Ok(ShapeGeometry::Sphere(Sphere {
+            let sphere = ShapeGeometry::Sphere(Sphere {
                 center: matrix.transform_point3(center),
                 radius: radius * s.x,
-            }));
+            });
+            let to_object = glam::Mat3::from_mat4(matrix).inverse();
+            return Ok((sphere, UvMapping::Sphere { to_object }));
         }
     };
-    Ok(ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)))
+    let mapping = match shape.kind.as_str() {
+        // Mitsuba's polar coordinates are not linear over the fan's triangles.
+        "disk" => UvMapping::Polar {
+            to_object: glam::Affine3A::from_mat4(matrix).inverse(),
+        },
+        _ => UvMapping::Intrinsic,
+    };
+    Ok((
+        ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)),
+        mapping,
+    ))
 }
 
 /// The shape's normal options, then its transform; smooth normals (`smooth_normals`) are
