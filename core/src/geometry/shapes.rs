@@ -137,7 +137,7 @@ impl Mesh {
             let v = t.map(|i| self.positions[i as usize]);
             let n = (v[1] - v[0]).cross(v[2] - v[0]);
             let length_squared = n.length_squared();
-            if !(length_squared > 0.0) {
+            if length_squared.is_nan() || length_squared <= 0.0 {
                 continue;
             }
             let n = n / length_squared.sqrt();

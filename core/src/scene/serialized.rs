@@ -17,7 +17,7 @@
 use crate::geometry::Mesh;
 use flate2::read::ZlibDecoder;
 use glam::{Vec2, Vec3};
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::Path;
 
 /// The format's magic number.
@@ -25,6 +25,7 @@ const MAGIC: u16 = 0x041C;
 const HAS_NORMALS: u32 = 0x0001;
 const HAS_TEXCOORDS: u32 = 0x0002;
 const HAS_COLORS: u32 = 0x0008;
+const SINGLE_PRECISION: u32 = 0x1000;
 const DOUBLE_PRECISION: u32 = 0x2000;
 /// The most a zlib stream inflates: deflate's limit is 1032:1.
 const MAX_INFLATION: u64 = 1032;
@@ -243,6 +244,66 @@ fn mesh_offset(bytes: &[u8], version: u16, index: u32) -> Result<usize, String> 
         .ok_or_else(|| format!("mesh {index}'s offset {offset} is past the end of the file"))
 }
 
+/// `meshes` as a `.serialized` file of format `version` (3 or 4), each with its normals and
+/// texture coordinates when it has them, in f32 or (`double`) f64: what [`parse`] reads, for
+/// tests and the fuzzer's seeds.
+pub fn write(meshes: &[Mesh], version: u16, double: bool) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut offsets = Vec::new();
+    for (k, m) in meshes.iter().enumerate() {
+        offsets.push(out.len() as u64);
+        out.extend(MAGIC.to_le_bytes());
+        out.extend(version.to_le_bytes());
+        let mut body = Vec::new();
+        let mut flags = 0;
+        flags |= if m.normals.is_some() { HAS_NORMALS } else { 0 };
+        flags |= if m.uvs.is_some() { HAS_TEXCOORDS } else { 0 };
+        flags |= if double {
+            DOUBLE_PRECISION
+        } else {
+            SINGLE_PRECISION
+        };
+        body.extend(flags.to_le_bytes());
+        if version == 4 {
+            body.extend(format!("mesh{k}").bytes());
+            body.push(0);
+        }
+        body.extend((m.positions.len() as u64).to_le_bytes());
+        body.extend((m.indices.len() as u64).to_le_bytes());
+        let real = |body: &mut Vec<u8>, x: f32| {
+            if double {
+                body.extend((x as f64).to_le_bytes())
+            } else {
+                body.extend(x.to_le_bytes())
+            }
+        };
+        for p in &m.positions {
+            p.to_array().iter().for_each(|&x| real(&mut body, x));
+        }
+        for n in m.normals.iter().flatten() {
+            n.to_array().iter().for_each(|&x| real(&mut body, x));
+        }
+        for t in m.uvs.iter().flatten() {
+            t.to_array().iter().for_each(|&x| real(&mut body, x));
+        }
+        for t in &m.indices {
+            t.iter().for_each(|i| body.extend(i.to_le_bytes()));
+        }
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&body).expect("writing to memory");
+        out.extend(z.finish().expect("writing to memory"));
+    }
+    for o in &offsets {
+        if version == 4 {
+            out.extend(o.to_le_bytes());
+        } else {
+            out.extend((*o as u32).to_le_bytes());
+        }
+    }
+    out.extend((meshes.len() as u32).to_le_bytes());
+    out
+}
+
 /// The inflated stream, read in exact amounts.
 struct Stream<'a> {
     inner: ZlibDecoder<&'a [u8]>,
@@ -269,66 +330,11 @@ impl Stream<'_> {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
     use flate2::Compression;
     use flate2::write::ZlibEncoder;
     use std::io::Write;
-
-    /// A `.serialized` file of `meshes` in format `version`, each with normals and texture
-    /// coordinates when it has them (f32, or f64 with `double`).
-    pub fn serialized(meshes: &[Mesh], version: u16, double: bool) -> Vec<u8> {
-        let mut out = Vec::new();
-        let mut offsets = Vec::new();
-        for (k, m) in meshes.iter().enumerate() {
-            offsets.push(out.len() as u64);
-            out.extend(MAGIC.to_le_bytes());
-            out.extend(version.to_le_bytes());
-            let mut body = Vec::new();
-            let mut flags = 0;
-            flags |= if m.normals.is_some() { HAS_NORMALS } else { 0 };
-            flags |= if m.uvs.is_some() { HAS_TEXCOORDS } else { 0 };
-            flags |= if double { DOUBLE_PRECISION } else { 0x1000 };
-            body.extend(flags.to_le_bytes());
-            if version == 4 {
-                body.extend(format!("mesh{k}").bytes());
-                body.push(0);
-            }
-            body.extend((m.positions.len() as u64).to_le_bytes());
-            body.extend((m.indices.len() as u64).to_le_bytes());
-            let real = |body: &mut Vec<u8>, x: f32| {
-                if double {
-                    body.extend((x as f64).to_le_bytes())
-                } else {
-                    body.extend(x.to_le_bytes())
-                }
-            };
-            for p in &m.positions {
-                p.to_array().iter().for_each(|&x| real(&mut body, x));
-            }
-            for n in m.normals.iter().flatten() {
-                n.to_array().iter().for_each(|&x| real(&mut body, x));
-            }
-            for t in m.uvs.iter().flatten() {
-                t.to_array().iter().for_each(|&x| real(&mut body, x));
-            }
-            for t in &m.indices {
-                t.iter().for_each(|i| body.extend(i.to_le_bytes()));
-            }
-            let mut z = ZlibEncoder::new(Vec::new(), Compression::default());
-            z.write_all(&body).unwrap();
-            out.extend(z.finish().unwrap());
-        }
-        for o in &offsets {
-            if version == 4 {
-                out.extend(o.to_le_bytes());
-            } else {
-                out.extend((*o as u32).to_le_bytes());
-            }
-        }
-        out.extend((meshes.len() as u32).to_le_bytes());
-        out
-    }
 
     #[test]
     fn meshes_read_back_in_both_versions_and_precisions() {
@@ -336,7 +342,7 @@ pub(crate) mod tests {
         let rectangle = crate::geometry::rectangle();
         for version in [3, 4] {
             for double in [false, true] {
-                let bytes = serialized(&[cube.clone(), rectangle.clone()], version, double);
+                let bytes = write(&[cube.clone(), rectangle.clone()], version, double);
                 assert_eq!(parse(&bytes, 0).unwrap(), cube, "v{version} {double}");
                 assert_eq!(parse(&bytes, 1).unwrap(), rectangle, "v{version} {double}");
                 let e = parse(&bytes, 2).unwrap_err();
@@ -348,7 +354,7 @@ pub(crate) mod tests {
     #[test]
     fn bad_files_are_refused_with_the_reason() {
         let cube = crate::geometry::cube();
-        let good = serialized(&[cube], 4, false);
+        let good = write(&[cube], 4, false);
         let mut v5 = good.clone();
         v5[2] = 5;
         assert!(parse(&v5, 0).unwrap_err().contains("version 5"));
@@ -358,7 +364,7 @@ pub(crate) mod tests {
         assert!(e.contains("ends or is corrupt"), "{e}");
         // A stream that declares 2^62 vertices.
         let mut body = Vec::new();
-        body.extend(0x1000u32.to_le_bytes());
+        body.extend(SINGLE_PRECISION.to_le_bytes());
         body.push(0);
         body.extend((1u64 << 62).to_le_bytes());
         body.extend(1u64.to_le_bytes());

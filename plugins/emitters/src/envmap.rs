@@ -941,6 +941,61 @@ mod tests {
         }
     }
 
+    /// A turn about any axis carries the map's directions as that rotation does: about +x by
+    /// 90°, the map's up (+y) looks along +z; about (1, 1, 1) by 120°, +x goes to +y; about an
+    /// axis a hair off +y (the general frame) as about +y (the turn's own arithmetic), within
+    /// f32 rounding; and map coordinates of a turned direction come back to where they were.
+    #[test]
+    fn turns_about_any_axis_carry_directions_as_the_rotation_does() {
+        let turned = |degrees: f32, axis: Vec3, orientation| {
+            let settings = MapSettings {
+                rotation_degrees: degrees,
+                rotation_axis: axis,
+                orientation,
+                ..MapSettings::default()
+            };
+            EnvironmentMap::with_settings(8, 4, vec![Rgb::ONE; 32], &settings).unwrap()
+        };
+        let up = Vec2::new(0.3, 0.0);
+        let about_x = turned(90.0, Vec3::X, Orientation::Lumis);
+        assert!(about_x.to_direction(up).abs_diff_eq(Vec3::Z, 1e-6));
+        let diagonal = turned(120.0, Vec3::ONE, Orientation::Lumis);
+        // The map's −x (u = 1/4 on the equator) goes where a turn of (1, 1, 1) takes −x: −y.
+        let quarter = Vec2::new(0.25, 0.5);
+        assert!(
+            diagonal
+                .to_direction(quarter)
+                .abs_diff_eq(Vec3::NEG_Y, 1e-6),
+            "{}",
+            diagonal.to_direction(quarter)
+        );
+        for orientation in [Orientation::Lumis, Orientation::Mitsuba] {
+            for degrees in [0.0, 30.0, -135.0] {
+                let general = turned(degrees, Vec3::new(1e-6, 1.0, 0.0), orientation);
+                let about_y = turned(degrees, Vec3::Y, orientation);
+                assert!(general.frame.is_some() && about_y.frame.is_none());
+                for uv in [
+                    Vec2::new(0.5, 0.5),
+                    Vec2::new(0.1, 0.3),
+                    Vec2::new(0.8, 0.9),
+                ] {
+                    let (a, b) = (general.to_direction(uv), about_y.to_direction(uv));
+                    assert!(a.abs_diff_eq(b, 1e-5), "{degrees}: {a} vs {b}");
+                    let (back, _) = general.to_uv(a);
+                    assert!(back.abs_diff_eq(uv, 1e-5), "{degrees}: {back} vs {uv}");
+                }
+            }
+        }
+        let flat = MapSettings {
+            rotation_axis: Vec3::ZERO,
+            ..MapSettings::default()
+        };
+        let e = EnvironmentMap::with_settings(8, 4, vec![Rgb::ONE; 32], &flat)
+            .map(|_| ())
+            .unwrap_err();
+        assert!(e.contains("rotation_axis"), "{e}");
+    }
+
     #[test]
     fn mapping_follows_the_documented_convention() {
         let m = map(0.0);

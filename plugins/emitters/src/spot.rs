@@ -155,7 +155,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
             "`{DIRECTION}` must be a non-zero vector, found {direction}"
         )));
     }
-    if !(cutoff_degrees > 0.0) {
+    if cutoff_degrees.is_nan() || cutoff_degrees <= 0.0 {
         return Err(invalid(format!(
             "`{CUTOFF_ANGLE}` must be more than 0 degrees (a cone of no angle lights nothing), \
              found {cutoff_degrees}"

@@ -66,7 +66,8 @@ impl Converter {
             "roughconductor" => self.roughconductor(p),
             "conductor" => self.conductor(p),
             other => {
-                self.problem(p.line, format!("BSDF `{other}` is not converted"));
+                let other = other.to_string();
+                self.refuse(p, format!("BSDF `{other}` is not converted"));
                 Ok(None)
             }
         }
@@ -164,11 +165,23 @@ impl Converter {
                 );
                 false
             }
+            None if self.conductor_default_material() == "none" => {
+                for k in ["eta", "k"] {
+                    if let Some((_, l)) = p.take(k) {
+                        self.problem(l, format!("a conductor's `{k}` is not converted"));
+                        return false;
+                    }
+                }
+                true
+            }
             None => {
                 self.problem(
                     p.line,
-                    "a conductor without `material: none` (Mitsuba's default is copper) is not \
-                     converted",
+                    format!(
+                        "a conductor without `material` in a Mitsuba {} file is copper (`Cu`), \
+                         which is not converted",
+                        self.version()
+                    ),
                 );
                 false
             }

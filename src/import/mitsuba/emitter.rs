@@ -217,7 +217,22 @@ impl Converter {
             )
             .rgb(spot::INTENSITY, f32s(intensity));
         for name in [spot::CUTOFF_ANGLE, spot::BEAM_WIDTH] {
-            if let Some((degrees, _)) = p.number(name)? {
+            if let Some((degrees, l)) = p.number(name)? {
+                let least = if name == spot::CUTOFF_ANGLE {
+                    0.0
+                } else {
+                    -1.0
+                };
+                if !(degrees > least && degrees <= 180.0) {
+                    self.problem(
+                        l,
+                        format!(
+                            "a spot light's `{name}` of {degrees}° is out of range (the cut-off \
+                             in (0, 180] degrees: at 0 the cone is empty; the beam in [0, 180])"
+                        ),
+                    );
+                    return Ok(None);
+                }
                 spec = spec.float(name, degrees as f32);
             }
         }

@@ -280,7 +280,7 @@ pub(super) fn substitute(
 }
 
 /// The folder of `path` (`.` for a bare file name).
-fn parent(path: &Path) -> PathBuf {
+pub(super) fn parent(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),

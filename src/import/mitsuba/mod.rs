@@ -267,7 +267,6 @@ impl Converter {
 
     /// The `material` a `conductor` or `roughconductor` has when it names none: `Cu` in files
     /// older than Mitsuba 2 (what they meant), `none` (a perfect mirror) in Mitsuba 3's.
-    #[allow(dead_code)] // Read by the conductor's conversion (materials).
     fn conductor_default_material(&self) -> &'static str {
         if self.version().is_legacy() {
             "Cu"
@@ -541,18 +540,20 @@ impl Converter {
     }
 
     /// An asset file name in the XML, as the RON file must write it, found as Mitsuba finds
-    /// it (the `<path>` folders, then the main file's folder); `None`, after a problem at
+    /// it (the `<path>` folders, the main file's folder, then the folder of the file being
+    /// read); `None`, after a problem at
     /// `at` naming what it is (`what`, e.g. "mesh file"), if no folder holds it.
     fn asset(&mut self, name: &str, at: u32, what: &str) -> Option<String> {
-        match files::find(&self.search, name) {
-            Some(found) => Some(paths::as_written_from(
-                &found.to_string_lossy(),
-                Path::new(""),
-                &self.out_dir,
-            )),
+        // Mitsuba also looks beside an included file while it reads it.
+        let mut places = self.search.clone();
+        let here = files::parent(&self.files[self.file].0);
+        if !places.contains(&here) {
+            places.push(here);
+        }
+        match files::find(&places, name) {
+            Some(found) => Some(paths::found_as_written(name, &found, &self.out_dir)),
             None => {
-                let places: Vec<String> = self
-                    .search
+                let places: Vec<String> = places
                     .iter()
                     .map(|p| format!("`{}`", p.display()))
                     .collect();

@@ -93,6 +93,9 @@ pub(super) enum Value {
     /// `point` or `vector`.
     Vector(DVec3),
     Transform(DMat4),
+    /// A value already reported as not converted (a blackbody spectrum): whatever reads it
+    /// gets nothing, not a default.
+    Refused,
 }
 
 struct Property {
@@ -153,6 +156,11 @@ fn upgraded_name(name: &str, kind: &str, version: Version) -> String {
     }
     name
 }
+
+/// Why a blackbody spectrum is refused.
+const BLACKBODY: &str = "a blackbody spectrum is not converted: lumis renders in RGB, where \
+                         Mitsuba's RGB variants refuse it too (\"Not implemented for non-spectral \
+                         modes\")";
 
 /// An 8-bit sRGB-encoded value in [0, 1], linear.
 fn srgb_to_linear(c: f64) -> f64 {
@@ -236,6 +244,14 @@ pub(super) fn read<'a, 'input>(
                     _ => return Err(format!("line {at}: `{v}` is not 1 or 3 numbers")),
                 }
             }
+            "spectrum" if child.attribute("type") == Some("blackbody") => {
+                report.problem(at, BLACKBODY);
+                Value::Refused
+            }
+            "blackbody" if version.is_legacy() => {
+                report.problem(at, BLACKBODY);
+                Value::Refused
+            }
             "spectrum" if child.attribute("type").is_some() => {
                 props.objects.push(child);
                 continue;
@@ -256,7 +272,7 @@ pub(super) fn read<'a, 'input>(
                 None => continue,
             },
             "ref" | "bsdf" | "emitter" | "film" | "sampler" | "rfilter" | "texture" | "shape"
-            | "medium" | "phase" | "volume" | "integrator" | "sensor" | "blackbody" => {
+            | "medium" | "phase" | "volume" | "integrator" | "sensor" => {
                 props.objects.push(child);
                 continue;
             }
@@ -429,6 +445,7 @@ impl Properties<'_, '_> {
             Some((Value::Float(f), _)) => Ok(Some([f; 3])),
             Some((Value::Int(n), _)) => Ok(Some([n as f64; 3])),
             Some((Value::Spectrum(s), _)) => Ok(Some(spectrum::to_rgb(&s, emitter))),
+            Some((Value::Refused, _)) => Ok(None),
             Some((_, l)) => Err(format!("line {l}: `{name}` must be a colour")),
             None if self.object_named(name) => Ok(None),
             None => Ok(Some([default; 3])),
@@ -442,7 +459,7 @@ impl Properties<'_, '_> {
             return;
         }
         for (name, property) in self.properties {
-            if !property.read {
+            if !property.read && !matches!(property.value, Value::Refused) {
                 report.problem(
                     property.line,
                     format!("property `{name}` of {owner} is not converted"),

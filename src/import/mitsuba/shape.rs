@@ -78,7 +78,7 @@ impl Converter {
                 }
                 if p.kind == "serialized" {
                     match p.take("shape_index") {
-                        Some((Value::Int(n), _)) if n == 0 => {}
+                        Some((Value::Int(0), _)) => {}
                         Some((Value::Int(n), l)) => {
                             shape.shape_index = Some(u32::try_from(n).map_err(|_| {
                                 format!("line {l}: `shape_index` must be a non-negative integer")

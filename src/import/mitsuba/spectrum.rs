@@ -205,7 +205,7 @@ fn interpolate(i0: usize, w1: f64, column: usize) -> f64 {
 /// Mitsuba's XYZ to linear sRGB matrix (its constants, in f32).
 fn xyz_to_srgb([x, y, z]: [f64; 3]) -> [f64; 3] {
     const M: [[f32; 3]; 3] = [
-        [3.240479, -1.537150, -0.498535],
+        [3.240479, -1.53715, -0.498535],
         [-0.969256, 1.875991, 0.041556],
         [0.055648, -0.204043, 1.057311],
     ];
