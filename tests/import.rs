@@ -1120,3 +1120,22 @@ fn an_element_that_is_refused_is_reported_once() {
     assert_eq!(c.description.shapes.len(), 1);
     assert_eq!(c.description.shapes[0].bsdf.as_deref(), Some("default"));
 }
+
+/// A shape may refer to an `area` emitter given later in the file by its `id`, as Mitsuba
+/// resolves references once everything is read.
+#[test]
+fn shapes_take_area_emitters_defined_after_them() {
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="rectangle">
+        <ref id="light"/>
+        <bsdf type="diffuse"/>
+    </shape>
+    <emitter type="area" id="light"><rgb name="radiance" value="3"/></emitter>
+</scene>"#;
+    let (_dir, path) = scene_file("later.xml", xml);
+    let c = convert_at(&path).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    let emitter = c.description.shapes[0].emitter.as_ref().unwrap();
+    assert_eq!(emitter.kind, "area");
+}

@@ -309,8 +309,9 @@ impl Converter {
     }
 
     /// Reads the scene whose main file's root is `root`: the `id`s of every scene-level
-    /// element first, then the BSDFs and textures, then the rest, so that a reference may come
-    /// before what it names (Mitsuba resolves references once every file is read).
+    /// element first, then the BSDFs, textures and area emitters, then the rest, so that a
+    /// reference may come before what it names (Mitsuba resolves references once every file is
+    /// read).
     fn scene_file(&mut self, docs: &[Document], root: &Node) -> Result<(), String> {
         self.collect_ids(docs, 0, root)?;
         self.in_pass(docs, 0, root, true)?;
@@ -368,8 +369,8 @@ impl Converter {
         })
     }
 
-    /// One pass over file `index` and its includes: its referable elements (BSDFs and
-    /// textures, `first_pass`) or the others.
+    /// One pass over file `index` and its includes: its referable elements (BSDFs, textures and
+    /// area emitters, `first_pass`) or the others.
     fn in_pass(
         &mut self,
         docs: &[Document],
@@ -394,12 +395,22 @@ impl Converter {
             for node in Self::scene_level(root) {
                 if let Some(included) = c.included(&node) {
                     c.in_pass(docs, included, &docs[included].root_element(), first_pass)?;
-                } else if matches!(node.tag_name().name(), "bsdf" | "texture") == first_pass {
+                } else if Self::referable(&node) == first_pass {
                     c.element(&node)?;
                 }
             }
             Ok(())
         })
+    }
+
+    /// Whether a scene-level element is one that shapes refer to (a BSDF, a texture, an `area`
+    /// emitter), read in the first pass.
+    fn referable(node: &Node) -> bool {
+        match node.tag_name().name() {
+            "bsdf" | "texture" => true,
+            "emitter" => node.attribute("type") == Some("area"),
+            _ => false,
+        }
     }
 
     /// Records the `id` of a scene-level element; a second definition is an error (as in
