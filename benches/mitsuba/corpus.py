@@ -78,6 +78,36 @@ def shrink(folder, factor):
             xml.write_text(new)
 
 
+def plain(folder):
+    """Rewrites every XML file under `folder` to what lumis converts in full, keeping geometry,
+    lights, camera and filter: every BSDF becomes Mitsuba's default (`diffuse`, 0.5, one-sided
+    as Mitsuba's are; lumis' reflect on both sides, which these scenes do not see), textures
+    are dropped, and `path` integrators become `direct` (emitter and BSDF sample each)."""
+    import xml.etree.ElementTree as ET
+    for xml in folder.rglob("*.xml"):
+        try:
+            tree = ET.parse(xml)
+        except ET.ParseError:
+            continue
+        root = tree.getroot()
+
+        def visit(node):
+            for child in list(node):
+                if child.tag == "bsdf":
+                    keep = {k: v for k, v in child.attrib.items() if k in ("id", "name")}
+                    child.clear()
+                    child.attrib.update(keep, type="diffuse")
+                elif child.tag == "texture" and node is root:
+                    node.remove(child)
+                elif child.tag == "integrator" and child.get("type") in ("path", "moment"):
+                    child.clear()
+                    child.attrib["type"] = "direct"
+                else:
+                    visit(child)
+        visit(root)
+        tree.write(xml)
+
+
 def lumis_runs(binary, ron, runs, spp, exr):
     images = []
     for s in range(runs):
@@ -123,6 +153,9 @@ def main():
     p.add_argument("--block", type=int, default=8, help="block edge (pixels) of the test")
     p.add_argument("--only", nargs="*", help="scene names to run (default: all)")
     p.add_argument("--png", type=Path, help="write lumis' and Mitsuba's mean images here")
+    p.add_argument("--plain", action="store_true",
+                   help="compare the scenes with every BSDF made diffuse and `path` made "
+                        "`direct` (what lumis converts in full), not as written")
     args = p.parse_args()
     work = args.work.resolve()
     work.mkdir(parents=True, exist_ok=True)
@@ -137,6 +170,8 @@ def main():
     for folder in FOLDERS:
         shutil.copytree(data / folder, tree / folder)
     shrink(tree, args.shrink)
+    if args.plain:
+        plain(tree)
 
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
