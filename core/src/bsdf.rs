@@ -14,69 +14,21 @@
 //! [`Lanes`](crate::math::lanes::Lanes) ([`BsdfLanes`]): one formula for one sample or for
 //! several, at one shading point or at several.
 
+mod context;
 mod lanes;
+mod sample;
 
+pub use context::{BsdfContext, Side};
 pub use lanes::{
     BsdfContextLanes, BsdfLanes, BsdfSampleLanes, eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes,
     sample_one,
 };
+pub use sample::BsdfSample;
 
 use crate::math::Rgb;
 use crate::math::lanes::one_or_each;
 use glam::{Vec2, Vec3};
 use std::ops::{BitAnd, BitOr, BitOrAssign};
-
-/// The side of a surface: the front is the side its geometric normal points to (for a mesh,
-/// the side from which its triangles are counter-clockwise; for a sphere, the outside).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Side {
-    Front,
-    Back,
-}
-
-/// What a BSDF knows of the shading point it is evaluated at, besides the two directions.
-///
-/// A scalar call is given one; a batch call one for all its elements or one per element (see
-/// [`Bsdf::eval_pdf_batch`]); a kernel over lanes one per lane ([`BsdfContextLanes`]). Built
-/// with [`BsdfContext::new`] (or [`BsdfContext::FRONT`]): fields may be added in later
-/// versions of the interface, so plugins read them but do not write the struct out.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[non_exhaustive]
-pub struct BsdfContext {
-    /// The point's texture coordinates, as the shape parameterises its surface (a mesh's
-    /// vertex UVs, Mitsuba's parameterisations of the built-in shapes). Computed only for a
-    /// BSDF that reads them: one whose [`flags`](Bsdf::flags) include
-    /// [`BsdfFlags::SPATIALLY_VARYING`] or that was given a texture; (0, 0) for the others.
-    /// Not filtered: no derivatives are given (as Mitsuba's `bitmap` without MIP-mapping).
-    pub uv: Vec2,
-    /// The side of the surface the viewer (`wo`) is on, by the geometric normal. The shading
-    /// frame is turned toward the viewer whichever side it is, so `wo.z` does not say it: a
-    /// transmissive BSDF reads it to know whether the viewer is outside (`Front`, the side
-    /// the normal points to) or inside, and orients η accordingly.
-    pub side: Side,
-}
-
-impl BsdfContext {
-    /// Seen from the front, at uv (0, 0): what a BSDF tested on its own is given.
-    pub const FRONT: BsdfContext = BsdfContext::new(Vec2::ZERO, Side::Front);
-    /// Seen from the back, at uv (0, 0).
-    pub const BACK: BsdfContext = BsdfContext::new(Vec2::ZERO, Side::Back);
-
-    pub const fn new(uv: Vec2, side: Side) -> Self {
-        BsdfContext { uv, side }
-    }
-
-    /// This context at texture coordinates `uv`.
-    pub const fn with_uv(self, uv: Vec2) -> Self {
-        BsdfContext { uv, ..self }
-    }
-}
-
-impl Default for BsdfContext {
-    fn default() -> Self {
-        BsdfContext::FRONT
-    }
-}
 
 /// Which kinds of lobes a BSDF has, and whether it varies over the surface; integrators use
 /// them to skip work (light sampling is useless for a purely delta BSDF), the shading point to
@@ -189,65 +141,6 @@ impl BitAnd for BsdfFlags {
     type Output = Self;
     fn bitand(self, rhs: Self) -> Self {
         BsdfFlags(self.0 & rhs.0)
-    }
-}
-
-/// One direction drawn by [`Bsdf::sample`]. Built with [`BsdfSample::new`] or
-/// [`BsdfSample::delta`] (then [`with_eta`](BsdfSample::with_eta) for a refraction): fields
-/// may be added in later versions of the interface.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[non_exhaustive]
-pub struct BsdfSample {
-    pub wi: Vec3,
-    /// Density in solid angle; for a delta lobe, the discrete probability of choosing it.
-    pub pdf: f32,
-    /// `eval(wo, wi) / pdf` (for a delta lobe, the lobe's weight divided by its probability),
-    /// the 1/η² of radiance transport included for a refraction.
-    pub weight: Rgb,
-    /// Drawn from a Dirac lobe: `eval` and `pdf` are zero in its direction.
-    pub delta: bool,
-    /// The relative index of refraction of the sampled interaction, η = η_i / η_o (the index on
-    /// wi's side over wo's): 1 for a reflection, and for a transmission that does not bend
-    /// (a thin sheet). A path tracer keeps the product of these for its Russian roulette, as
-    /// Mitsuba's `path` does.
-    pub eta: f32,
-}
-
-impl BsdfSample {
-    /// A sample of a lobe that has a density: `pdf` in solid angle, `weight` = eval / pdf,
-    /// η = 1.
-    #[inline(always)]
-    pub fn new(wi: Vec3, pdf: f32, weight: Rgb) -> Self {
-        BsdfSample {
-            wi,
-            pdf,
-            weight,
-            delta: false,
-            eta: 1.0,
-        }
-    }
-
-    /// A sample of a Dirac lobe chosen with probability `probability`, of weight `weight`
-    /// (the lobe's weight over `probability`), η = 1.
-    #[inline(always)]
-    pub fn delta(wi: Vec3, probability: f32, weight: Rgb) -> Self {
-        BsdfSample {
-            delta: true,
-            ..BsdfSample::new(wi, probability, weight)
-        }
-    }
-
-    /// The sample with relative index of refraction `eta` (η_i / η_o).
-    #[inline(always)]
-    pub fn with_eta(self, eta: f32) -> Self {
-        BsdfSample { eta, ..self }
-    }
-
-    /// Whether `wi` crossed the surface: it is on the far side from the viewer (`wi.z < 0` in
-    /// the frame turned toward the viewer), a sample of a transmission lobe.
-    #[inline(always)]
-    pub fn transmission(&self) -> bool {
-        self.wi.z < 0.0
     }
 }
 

@@ -8,7 +8,8 @@
 //! looked up at each lane's uv). For the samples of one shading point the context and the
 //! parameters are splats, resolved once per batch.
 
-use super::{BsdfContext, BsdfSample, Side};
+use super::context::{BsdfContext, Side};
+use super::sample::BsdfSample;
 use crate::math::Rgb;
 use crate::math::lanes::{LaneKernel, Lanes, Mask, V2, V3, by_groups, with_widest_lanes};
 use glam::{Vec2, Vec3};

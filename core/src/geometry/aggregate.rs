@@ -12,7 +12,7 @@ use super::triangle::RayShear;
 use super::uv::UvMapping;
 use crate::limits::MAX_COORDINATE;
 use crate::math::gamma;
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
@@ -476,6 +476,29 @@ impl Geometry {
                 counts(primitive) && primitive.hit(ray, &shear, ray.t_max).is_some()
             },
         )
+    }
+}
+
+impl Geometry {
+    /// The shapes' texture coordinate mappings, one per shape (all [`UvMapping::Intrinsic`]
+    /// unless set).
+    ///
+    /// # Panics
+    /// If there is not one per shape.
+    pub fn with_uv_mappings(mut self, mappings: Vec<UvMapping>) -> Self {
+        assert_eq!(
+            mappings.len(),
+            self.shapes.len(),
+            "one UV mapping per shape"
+        );
+        self.uv_mappings = mappings;
+        self
+    }
+
+    /// The texture coordinates of the surface point `hit` (a hit of this geometry), finite.
+    pub fn uv(&self, hit: &Intersection) -> Vec2 {
+        let shape = hit.shape as usize;
+        self.uv_mappings[shape].uv(&self.shapes[shape], hit)
     }
 }
 
