@@ -49,8 +49,8 @@ pub struct Filter {
 #[derive(Clone, Debug)]
 enum Shape {
     Box,
-    /// A tent or a Gaussian, as Mitsuba's table of it.
-    Staircase(Staircase),
+    /// A tent or a Gaussian, as Mitsuba's table of it (boxed: the box's filter stays small).
+    Staircase(Box<Staircase>),
 }
 
 /// Mitsuba's tabulated filter over [−r, r]: `2 · STEPS` steps of width Δ = r / STEPS.
@@ -132,13 +132,13 @@ impl Filter {
             })
             .collect();
         let mut filter = Filter {
-            shape: Shape::Staircase(Staircase {
+            shape: Shape::Staircase(Box::new(Staircase {
                 radius,
                 step,
                 values,
                 cdf,
                 weights,
-            }),
+            })),
             outside: Vec::new(),
         };
         let r = radius as f64;
