@@ -63,13 +63,22 @@ pub mod fuzzing {
         crate::scene::ply::parse(data).is_ok()
     }
 
-    /// Converts a Mitsuba 3 XML scene from its bytes (accepted: converted without problems).
+    /// Converts a Mitsuba XML scene from its bytes (accepted: converted, perhaps with problems;
+    /// the files it names are looked for in a folder that does not exist).
     pub fn mitsuba_xml(data: &[u8]) -> bool {
         let Ok(text) = std::str::from_utf8(data) else {
             return false;
         };
         let dir = Path::new("/nonexistent");
-        crate::import::convert(text, dir, dir, &[]).is_ok_and(|c| c.problems.is_empty())
+        crate::import::convert(text, &dir.join("scene.xml"), dir, &[]).is_ok()
+    }
+
+    /// Reads a Mitsuba `.serialized` mesh file from its bytes: its first mesh (accepted), and
+    /// its second through the file's table of meshes.
+    pub fn serialized(data: &[u8]) -> bool {
+        // Run for what it may reveal, not for its verdict.
+        let _ = crate::scene::serialized::parse(data, 1);
+        crate::scene::serialized::parse(data, 0).is_ok()
     }
 
     /// Decodes an EXR image from its bytes.

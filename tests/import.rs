@@ -1,5 +1,5 @@
 //! Scenes from the ecosystem: one cube written as OBJ, PLY (ASCII, binary little- and
-//! big-endian) and glTF renders bit-identically to the built-in cube; OBJ groups and shape
+//! big-endian), glTF and Mitsuba's `.serialized` renders bit-identically to the built-in cube; OBJ groups and shape
 //! options; glTF cameras, lights and materials; a Mitsuba 3 XML scene converts and renders, and
 //! what cannot be converted is named with its line.
 
@@ -167,7 +167,11 @@ fn cube_scene(shape: &str) -> String {
 
 #[test]
 fn one_cube_in_every_format_renders_bit_identically() {
-    let m = cube();
+    // Written without texture coordinates, which do not change this image.
+    let m = Mesh {
+        uvs: None,
+        ..cube()
+    };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("cube.obj"), obj_text(&m)).unwrap();
@@ -177,6 +181,15 @@ fn one_cube_in_every_format_renders_bit_identically() {
     let (json, bin) = gltf_files(&m);
     std::fs::write(d.join("cube.gltf"), json).unwrap();
     std::fs::write(d.join("cube.bin"), bin).unwrap();
+    // Mitsuba's `.serialized`: format 4 in f32, and format 3 in f64 as the second mesh of two.
+    let serialized = lumis::scene::serialized::write;
+    std::fs::write(
+        d.join("cube.serialized"),
+        serialized(std::slice::from_ref(&m), 4, false),
+    )
+    .unwrap();
+    let pair = [lumis::geometry::rectangle(), m.clone()];
+    std::fs::write(d.join("pair.serialized"), serialized(&pair, 3, true)).unwrap();
 
     // The importers give the built-in cube exactly.
     assert_eq!(
@@ -207,6 +220,14 @@ fn one_cube_in_every_format_renders_bit_identically() {
         ("ply le", r#"type: "ply", file: "binary_little_endian.ply""#),
         ("ply be", r#"type: "ply", file: "binary_big_endian.ply""#),
         ("gltf", r#"type: "gltf", file: "cube.gltf""#),
+        (
+            "serialized",
+            r#"type: "serialized", file: "cube.serialized""#,
+        ),
+        (
+            "serialized second",
+            r#"type: "serialized", file: "pair.serialized", shape_index: 1"#,
+        ),
     ] {
         let path = d.join(format!("{}.ron", name.replace(' ', "_")));
         std::fs::write(&path, cube_scene(shape)).unwrap();
@@ -716,8 +737,16 @@ fn as_read(mut description: SceneDescription) -> SceneDescription {
 
 #[test]
 fn a_converted_scene_parses_back_into_the_same_description() {
+    // The assets the scenes name, which the importer checks.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir_all(d.join("xml/meshes")).unwrap();
+    std::fs::write(d.join("xml/meshes/cube.obj"), obj_text(&cube())).unwrap();
+    std::fs::write(d.join("xml/cube.obj"), obj_text(&cube())).unwrap();
+    std::fs::write(d.join("xml/cube.ply"), ply_bytes(&cube(), "ascii")).unwrap();
+    write_sky(&d.join("xml/sky.exr"));
     let converts = |xml| {
-        let c = lumis::import::convert(xml, Path::new("xml"), Path::new("out"), &[]).unwrap();
+        let c = lumis::import::convert(xml, &d.join("xml/scene.xml"), &d.join("out"), &[]).unwrap();
         assert_eq!(c.problems, [], "{xml}");
         c
     };
@@ -765,7 +794,7 @@ fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
     </shape>
     <texture type="checkerboard"/>
     <emitter type="envmap"><string name="filename" value="sky.hdr"/></emitter>
-    <emitter type="constant"/>
+    <emitter type="projector"/>
 </scene>
 "#;
     let (dir, path) = scene_file("bad.xml", xml);
@@ -776,11 +805,12 @@ fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
         "bad.xml:2: integrator `volpath` is not converted",
         "bad.xml:5: property `aperture_radius` of the sensor is not converted",
         "bad.xml:7: BSDF `blendbsdf` is not converted",
+        "bad.xml:9: mesh file `x.obj` not found",
         "bad.xml:10: microfacet distribution `phong` is not converted",
         "bad.xml:13: a bitmap texture without `filename`",
         "bad.xml:15: <texture> is not converted",
         "bad.xml:16: env map `sky.hdr`: lumis reads OpenEXR maps only",
-        "bad.xml:17: emitter `constant` is not converted",
+        "bad.xml:17: emitter `projector` is not converted",
         "nothing written",
     ] {
         assert!(stderr.contains(needle), "`{needle}` missing in:\n{stderr}");
@@ -805,4 +835,330 @@ fn what_cannot_be_converted_is_named_with_its_line_and_nothing_is_written() {
         stderr.contains("uses $fov, which no <default> or -D defines"),
         "{stderr}"
     );
+}
+
+/// Converts the scene file at `path` (read from disk, with its includes), writing names
+/// relative to its folder.
+fn convert_at(path: &Path) -> Result<lumis::import::Conversion, String> {
+    lumis::import::convert_file(path, path.parent().unwrap(), &[])
+}
+
+fn messages(list: &[lumis::import::Problem]) -> String {
+    list.iter()
+        .map(|p| format!("{p}\n"))
+        .collect::<Vec<_>>()
+        .concat()
+}
+
+/// `<include>` brings in a file's elements (from the including file's folder), `<path>` adds
+/// a folder that meshes are looked for in; a missing mesh is a problem naming where it was
+/// looked for; includes that loop, a missing included file and a `<path>` to a missing folder
+/// are errors naming the file, the line and the chain.
+#[test]
+fn includes_and_paths_resolve_as_mitsuba_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir_all(d.join("parts")).unwrap();
+    std::fs::create_dir_all(d.join("assets/meshes")).unwrap();
+    std::fs::write(d.join("assets/meshes/cube.obj"), obj_text(&cube())).unwrap();
+    let sensor = r#"<sensor type="perspective"><float name="fov" value="40"/>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+        <rfilter type="box"/></film></sensor>"#;
+    std::fs::write(
+        d.join("main.xml"),
+        format!(
+            r#"<scene version="3.0.0">
+    <path value="assets"/>
+    {sensor}
+    <include filename="parts/shapes.xml"/>
+</scene>"#
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("parts/shapes.xml"),
+        r#"<scene version="3.0.0">
+    <bsdf type="diffuse" id="white"/>
+    <shape type="obj">
+        <string name="filename" value="meshes/cube.obj"/>
+        <ref id="white"/>
+    </shape>
+    <shape type="obj">
+        <string name="filename" value="meshes/missing.obj"/>
+    </shape>
+</scene>"#,
+    )
+    .unwrap();
+    let c = convert_at(&d.join("main.xml")).unwrap();
+    assert_eq!(c.description.shapes.len(), 1, "{}", c.ron);
+    assert_eq!(
+        c.description.shapes[0].file.as_deref(),
+        Some("assets/meshes/cube.obj")
+    );
+    let problems = messages(&c.problems);
+    assert!(
+        problems.contains("shapes.xml:8: mesh file `meshes/missing.obj` not found (looked in")
+            && problems.contains("assets"),
+        "{problems}"
+    );
+    assert_eq!(c.problems.len(), 1, "{problems}");
+
+    // Cycles: a file that includes itself, and a loop of two.
+    std::fs::write(
+        d.join("self.xml"),
+        "<scene version=\"3.0.0\">\n<include filename=\"self.xml\"/>\n</scene>",
+    )
+    .unwrap();
+    let e = convert_at(&d.join("self.xml")).unwrap_err();
+    assert!(e.contains("self.xml:2: <include> makes a cycle"), "{e}");
+    std::fs::write(
+        d.join("a.xml"),
+        "<scene version=\"3.0.0\">\n<include filename=\"parts/b.xml\"/>\n</scene>",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("parts/b.xml"),
+        "<scene version=\"3.0.0\">\n\n<include filename=\"../a.xml\"/>\n</scene>",
+    )
+    .unwrap();
+    let e = convert_at(&d.join("a.xml")).unwrap_err();
+    assert!(
+        e.contains("b.xml:3: <include> makes a cycle")
+            && e.contains("a.xml` includes")
+            && e.contains("b.xml` includes"),
+        "{e}"
+    );
+    // A missing included file, a missing folder.
+    std::fs::write(
+        d.join("gone.xml"),
+        "<scene version=\"3.0.0\">\n<include filename=\"nowhere.xml\"/>\n</scene>",
+    )
+    .unwrap();
+    let e = convert_at(&d.join("gone.xml")).unwrap_err();
+    assert!(
+        e.contains("gone.xml:2: included file `nowhere.xml` not found"),
+        "{e}"
+    );
+    std::fs::write(
+        d.join("nofolder.xml"),
+        "<scene version=\"3.0.0\">\n\n<path value=\"no/such/folder\"/>\n</scene>",
+    )
+    .unwrap();
+    let e = convert_at(&d.join("nofolder.xml")).unwrap_err();
+    assert!(
+        e.contains("nofolder.xml:3: <path>: folder") && e.contains("no/such/folder"),
+        "{e}"
+    );
+}
+
+/// A Mitsuba 0.5 file: camelCase names, `<lookAt>`, `srgb` colours and `ldrfilm`, read as
+/// Mitsuba 3 upgrades them, with a note naming the version and the default that differs; a
+/// 0.x conductor without `material` is copper (refused by name), a 3.x one a mirror.
+#[test]
+fn files_older_than_mitsuba_2_are_upgraded_with_a_note() {
+    let xml = r##"<?xml version="1.0"?>
+<scene version="0.5.0">
+    <integrator type="direct">
+        <integer name="emitterSamples" value="2"/>
+        <integer name="bsdfSamples" value="2"/>
+    </integrator>
+    <sensor type="perspective">
+        <float name="fov" value="30"/>
+        <string name="fovAxis" value="y"/>
+        <transform name="toWorld">
+            <lookAt origin="0, 1, 5" target="0, 0.5, 0" up="0, 1, 0"/>
+        </transform>
+        <sampler type="ldsampler"><integer name="sampleCount" value="8"/></sampler>
+        <film type="ldrfilm">
+            <integer name="width" value="32"/>
+            <integer name="height" value="24"/>
+            <rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>
+        </film>
+    </sensor>
+    <bsdf type="diffuse" id="red">
+        <srgb name="diffuseReflectance" value="#ff0000"/>
+    </bsdf>
+    <bsdf type="conductor" id="copper"/>
+    <shape type="sphere">
+        <float name="radius" value="0.5"/>
+        <ref id="red"/>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="1" y="0" z="0"/>
+        <ref id="copper"/>
+    </shape>
+    <emitter type="constant"><spectrum name="radiance" value="1"/></emitter>
+</scene>
+"##;
+    let (dir, path) = scene_file("old.xml", xml);
+    let c = convert_at(&path).unwrap();
+    let notes = messages(&c.notes);
+    assert!(
+        notes.contains("old.xml:2: a Mitsuba 0.5.0 file (before 2.0)")
+            && notes.contains("copper, `Cu`"),
+        "{notes}"
+    );
+    assert!(notes.contains("old.xml:11: <lookAt>"), "{notes}");
+    let problems = messages(&c.problems);
+    assert!(
+        problems.contains(
+            "old.xml:23: a conductor without `material` in a Mitsuba 0.5.0 file is copper (`Cu`)"
+        ),
+        "{problems}"
+    );
+    assert_eq!(c.problems.len(), 1, "{problems}");
+    let d = &c.description;
+    assert_eq!(d.bsdfs["red"].kind, "diffuse");
+    assert_eq!((d.film.width, d.film.height), (32, 24));
+    assert_eq!(d.sampler.spp, 8);
+    assert_eq!(d.camera.fov, Some(30.0));
+    assert_eq!(d.film.filter.stddev, Some(0.25));
+    // The shape whose BSDF was refused keeps its geometry, with Mitsuba's default BSDF.
+    assert_eq!(d.shapes.len(), 2);
+    assert_eq!(d.shapes[1].bsdf.as_deref(), Some("default"));
+    // The same conductor in a Mitsuba 3 file is a mirror.
+    let (_d3, path3) = scene_file(
+        "new.xml",
+        &xml.replace("0.5.0", "3.0.0")
+            .replace("<srgb name=\"diffuseReflectance\" value=\"#ff0000\"/>", "")
+            .replace("fovAxis", "fov_axis")
+            .replace("toWorld", "to_world")
+            .replace("lookAt", "lookat")
+            .replace("emitterSamples", "emitter_samples")
+            .replace("bsdfSamples", "bsdf_samples")
+            .replace("sampleCount", "sample_count")
+            .replace("ldrfilm", "hdrfilm"),
+    );
+    let c3 = convert_at(&path3).unwrap();
+    assert_eq!(c3.problems, [], "{}", messages(&c3.problems));
+    assert_eq!(c3.description.bsdfs["copper"].kind, "mirror");
+    drop(dir);
+}
+
+/// The sensor: `focal_length` (and its default, 50 mm, when no `fov` is given) becomes the
+/// field of view Mitsuba derives from it; `focus_distance` on a pinhole is noted and ignored;
+/// a film without `rfilter` gets Mitsuba's Gaussian. Spectra on emitters are read as
+/// Mitsuba's RGB variants read them; a blackbody is refused once, with its line.
+#[test]
+fn sensors_filters_and_spectra_convert_as_mitsuba_reads_them() {
+    let scene = |sensor: &str, emitter: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    <sensor type="perspective">
+        {sensor}
+        <film type="hdrfilm"><integer name="width" value="36"/><integer name="height" value="24"/></film>
+    </sensor>
+    {emitter}
+</scene>"#
+        )
+    };
+    let constant = r#"<emitter type="constant"><spectrum name="radiance" value="2"/></emitter>"#;
+    let (_a, path) = scene_file(
+        "focal.xml",
+        &scene(
+            r#"<string name="focal_length" value="35mm"/>
+        <float name="focus_distance" value="3"/>"#,
+            constant,
+        ),
+    );
+    let c = convert_at(&path).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    // A 35 mm lens on 35 mm film (diagonal 43.27 mm) along the 36×24 film's diagonal: the
+    // vertical field of view is 2·atan(12 / 35) = 37.85°.
+    let fov = c.description.camera.fov.unwrap();
+    assert!((fov - 37.849_3).abs() < 1e-3, "{fov}");
+    let notes = messages(&c.notes);
+    assert!(
+        notes.contains("focal.xml:4: `focus_distance` is ignored"),
+        "{notes}"
+    );
+    assert!(notes.contains("no <rfilter>: Mitsuba's default"), "{notes}");
+    assert_eq!(c.description.film.filter.kind, "gaussian");
+    // A uniform spectrum of 2 on an emitter: Mitsuba's RGB variants give 2 × (1.2048, 0.9483,
+    // 0.9089), not grey.
+    let radiance = &c.description.emitters[0].params["radiance"];
+    let text = ron::to_string(radiance).unwrap();
+    assert!(text.starts_with("[2.409"), "{text}");
+
+    let (_b, path) = scene_file("default.xml", &scene("", constant));
+    let c = convert_at(&path).unwrap();
+    let fov = c.description.camera.fov.unwrap();
+    // 50 mm: vertical 2·atan(12 / 50) = 26.99°.
+    assert!((fov - 26.991).abs() < 1e-2, "{fov}");
+    assert!(messages(&c.notes).contains("no `fov`: Mitsuba's default focal length, 50 mm"));
+
+    let (_c, path) = scene_file(
+        "black.xml",
+        &scene(
+            r#"<float name="fov" value="40"/>"#,
+            r#"<emitter type="constant">
+        <spectrum name="radiance" type="blackbody"><float name="temperature" value="3000"/></spectrum>
+    </emitter>"#,
+        ),
+    );
+    let c = convert_at(&path).unwrap();
+    let problems = messages(&c.problems);
+    assert!(
+        problems.contains("black.xml:7: a blackbody spectrum is not converted"),
+        "{problems}"
+    );
+    assert_eq!(c.problems.len(), 1, "{problems}");
+    assert!(c.description.emitters.is_empty());
+    // Sampled spectra that Mitsuba refuses are errors with their line.
+    for (value, expect) in [("500:1", "at least two"), ("600:1, 500:2", "must increase")] {
+        let (_d, path) = scene_file(
+            "bad.xml",
+            &scene(
+                r#"<float name="fov" value="40"/>"#,
+                &format!(
+                    r#"<emitter type="constant"><spectrum name="radiance" value="{value}"/></emitter>"#
+                ),
+            ),
+        );
+        let e = convert_at(&path).unwrap_err();
+        assert!(e.contains("bad.xml:6:") && e.contains(expect), "{e}");
+    }
+}
+
+/// Refusals come once per element: an unknown BSDF with many properties is one problem, not
+/// one per property; with `--partial` its shape keeps its geometry with the default BSDF.
+#[test]
+fn an_element_that_is_refused_is_reported_once() {
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <bsdf type="principled" id="p">
+        <rgb name="base_color" value="0.8"/>
+        <float name="metallic" value="0.1"/>
+        <float name="roughness" value="0.3"/>
+        <float name="spec_tint" value="0.5"/>
+    </bsdf>
+    <shape type="sphere"><ref id="p"/></shape>
+</scene>"#;
+    let (_dir, path) = scene_file("once.xml", xml);
+    let c = convert_at(&path).unwrap();
+    assert_eq!(
+        messages(&c.problems),
+        format!("{}:3: BSDF `principled` is not converted\n", path.display())
+    );
+    assert_eq!(c.description.shapes.len(), 1);
+    assert_eq!(c.description.shapes[0].bsdf.as_deref(), Some("default"));
+}
+
+/// A shape may refer to an `area` emitter given later in the file by its `id`, as Mitsuba
+/// resolves references once everything is read.
+#[test]
+fn shapes_take_area_emitters_defined_after_them() {
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="rectangle">
+        <ref id="light"/>
+        <bsdf type="diffuse"/>
+    </shape>
+    <emitter type="area" id="light"><rgb name="radiance" value="3"/></emitter>
+</scene>"#;
+    let (_dir, path) = scene_file("later.xml", xml);
+    let c = convert_at(&path).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    let emitter = c.description.shapes[0].emitter.as_ref().unwrap();
+    assert_eq!(emitter.kind, "area");
 }

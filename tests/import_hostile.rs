@@ -1,7 +1,7 @@
 //! Hostile OBJ and PLY files (`tests/hostile-import/`), each loaded through a scene: every one
 //! gives the error its file announces (`# expect: ...` in OBJ, `comment expect: ...` in the PLY
 //! header) naming the file, or loads (`expect: ok`), and none panics. Then the fuzzers' seed
-//! corpora for the importers (`fuzz/corpus/{obj,ply,mitsuba_xml}`) replayed through the fuzz
+//! corpora for the importers (`fuzz/corpus/{obj,ply,mitsuba_xml,serialized}`) replayed through the fuzz
 //! targets' entry points, for when cargo-fuzz is not at hand.
 
 use crate::common;
@@ -97,4 +97,105 @@ fn importer_fuzz_corpora_never_panic() {
     replay("obj", lumis::fuzzing::obj);
     replay("ply", lumis::fuzzing::ply);
     replay("mitsuba_xml", lumis::fuzzing::mitsuba_xml);
+    replay("serialized", lumis::fuzzing::serialized);
+}
+
+/// The hostile `.serialized` seeds of the fuzz corpus, each loaded through a scene: the
+/// error names the file and the problem (binary files carry no annotation, so the expected
+/// errors are listed here).
+#[test]
+fn hostile_serialized_meshes_give_clear_errors() {
+    let dir = repo("fuzz/corpus/serialized");
+    for (name, expect) in [
+        ("truncated", "the zlib stream ends or is corrupt"),
+        ("version-5", "version 5 is not read"),
+        ("counts-overflow", "more than its zlib stream"),
+        ("bomb-declared-huge", "more than its zlib stream"),
+        ("index-out-of-range", "vertex index 9 is out of range"),
+        ("nan-position", "is not finite"),
+        ("not-serialized", "not a Mitsuba serialized mesh"),
+        ("v4-quad", "ok"),
+        ("v3-quad-double", "ok"),
+        ("v4-two-meshes", "ok"),
+    ] {
+        let work = tempfile::tempdir().unwrap();
+        let file = format!("{name}.serialized");
+        std::fs::copy(dir.join(name), work.path().join(&file)).unwrap();
+        let scene = work.path().join("scene.ron");
+        std::fs::write(
+            &scene,
+            common::SMALL_SCENE.replace(
+                "shapes: [",
+                &format!(r#"shapes: [(type: "serialized", file: "{file}", bsdf: "white"),"#),
+            ),
+        )
+        .unwrap();
+        let outcome = std::panic::catch_unwind(|| common::load(&scene, &[]).map(|_| ()))
+            .unwrap_or_else(|_| panic!("{name}: the loader panicked"));
+        match (expect, outcome) {
+            ("ok", outcome) => outcome.unwrap_or_else(|e| panic!("{name}: {e}")),
+            (_, Ok(())) => panic!("{name}: expected an error with `{expect}`"),
+            (_, Err(e)) => {
+                let e = e.to_string();
+                assert!(e.contains(expect) && e.contains(&file), "{name}: {e}");
+            }
+        }
+    }
+}
+
+/// Hostile Mitsuba scenes (`fuzz/corpus/mitsuba_xml/hostile-*.xml`, also fuzzing seeds): each
+/// gives an error or a problem naming the file, the line and the problem, and none panics.
+#[test]
+fn hostile_mitsuba_scenes_give_clear_errors() {
+    let dir = repo("fuzz/corpus/mitsuba_xml");
+    for (name, line, expect) in [
+        ("hostile-include-self.xml", 2, "<include> makes a cycle"),
+        ("hostile-path-missing.xml", 2, "<path>: folder"),
+        ("hostile-spectrum-one-pair.xml", 3, "at least two"),
+        (
+            "hostile-spectrum-unsorted.xml",
+            3,
+            "wavelengths must increase",
+        ),
+        (
+            "hostile-spot-cutoff-zero.xml",
+            5,
+            "`cutoff_angle` of 0° is out of range",
+        ),
+        (
+            "hostile-spot-cutoff-over-180.xml",
+            5,
+            "`cutoff_angle` of 270° is out of range",
+        ),
+        (
+            "hostile-filter-radius-zero.xml",
+            7,
+            "tent filter `radius` must be in",
+        ),
+        (
+            "hostile-filter-stddev-huge.xml",
+            7,
+            "gaussian filter `stddev` must be in",
+        ),
+        ("hostile-version-missing.xml", 1, "has no `version`"),
+    ] {
+        let work = tempfile::tempdir().unwrap();
+        let path = work.path().join(name);
+        std::fs::copy(dir.join(name), &path).unwrap();
+        let outcome = std::panic::catch_unwind(|| {
+            lumis::import::convert_file(&path, work.path(), &[]).map(|c| {
+                c.problems
+                    .iter()
+                    .map(|p| format!("{p}\n"))
+                    .collect::<String>()
+            })
+        })
+        .unwrap_or_else(|_| panic!("{name}: the importer panicked"));
+        let message = outcome.unwrap_or_else(|e| e);
+        let at = format!("{name}:{line}:");
+        assert!(
+            message.contains(&at) && message.contains(expect),
+            "{name}: expected `{at}` and `{expect}` in: {message}"
+        );
+    }
 }

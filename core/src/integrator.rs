@@ -25,6 +25,10 @@ pub struct CameraSample {
     pub sampler: Sampler,
     /// The primary ray through the (jittered) film position.
     pub ray: Ray,
+    /// The reconstruction filter's weight of the film position, f/p ([`crate::filter`]): the
+    /// sample's radiance counts times this in its pixel. 1 for the box and the tent, and for
+    /// samples through pixel centres.
+    pub weight: f32,
     /// The primary ray's closest intersection, if core traced it with other samples' rays
     /// ([`CameraSample::trace_together`]).
     traced: Option<Option<Intersection>>,
@@ -34,12 +38,13 @@ impl CameraSample {
     /// Camera sample `index` of `pixel`: its stream and its ray through the pixel, jittered
     /// when the scene asks for it, through the pixel's centre otherwise.
     pub fn new(scene: &Scene, pixel: UVec2, index: u32) -> Self {
-        let (sampler, film) = Self::stream(scene, pixel, index);
+        let (sampler, film, weight) = Self::stream(scene, pixel, index);
         CameraSample {
             pixel,
             index,
             sampler,
             ray: scene.camera.generate_ray(film),
+            weight,
             traced: None,
         }
     }
@@ -67,12 +72,13 @@ impl CameraSample {
             let start = samples.len();
             let mut films = [Vec2::ZERO; 4];
             for (lane, index) in (first..first + count as u32).enumerate() {
-                let (sampler, film) = Self::stream(scene, pixel, index);
+                let (sampler, film, weight) = Self::stream(scene, pixel, index);
                 films[lane] = film;
                 samples.push(CameraSample {
                     pixel,
                     index,
                     sampler,
+                    weight,
                     // Filled in below.
                     ray: Ray {
                         origin: Vec3::ZERO,
@@ -93,20 +99,21 @@ impl CameraSample {
         }
     }
 
-    /// Camera sample `index` of `pixel`: its stream, and its film position, jittered when the
-    /// scene asks for it, the pixel's centre otherwise.
-    fn stream(scene: &Scene, pixel: UVec2, index: u32) -> (Sampler, Vec2) {
+    /// Camera sample `index` of `pixel`: its stream, its film position, drawn from the
+    /// scene's reconstruction filter when the scene jitters, the pixel's centre otherwise, and
+    /// the position's filter weight.
+    fn stream(scene: &Scene, pixel: UVec2, index: u32) -> (Sampler, Vec2, f32) {
         let pixel_index = pixel.y as u64 * scene.width as u64 + pixel.x as u64;
         let mut sampler = Sampler::new(scene.seed, pixel_index, index as u64);
         // Drawn either way, so that the rest of the stream does not depend on the jitter.
         let offset = sampler.next_2d();
-        let film = pixel.as_vec2()
-            + if scene.jitter {
-                offset
-            } else {
-                Vec2::splat(0.5)
-            };
-        (sampler, film)
+        let (film, weight) = if scene.jitter {
+            let size = UVec2::new(scene.width, scene.height);
+            scene.filter.film_position(pixel, offset, size)
+        } else {
+            (pixel.as_vec2() + Vec2::splat(0.5), 1.0)
+        };
+        (sampler, film, weight)
     }
 
     /// The primary ray's closest intersection: the one [`CameraSample::trace_together`] found,

@@ -8,6 +8,7 @@ pub mod dylib;
 pub mod emitter;
 pub mod error;
 pub mod film;
+pub mod filter;
 pub mod geometry;
 pub mod huge_pages;
 pub mod image_io;

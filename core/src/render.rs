@@ -461,8 +461,8 @@ impl TileSums {
                     CameraSample::trace_together(scene, &mut batch);
                     let radiance = &mut radiance[..batch.len()];
                     integrator.shade_together(scene, &mut batch, sums, radiance);
-                    for r in radiance.iter() {
-                        tile.color[i] += r.as_dvec3();
+                    for (r, sample) in radiance.iter().zip(&batch) {
+                        tile.color[i] += (*r * sample.weight).as_dvec3();
                         tile.samples[i] += 1;
                     }
                 }

@@ -1,48 +1,50 @@
-//! `lumis import`: converts a Mitsuba 3 XML scene to a lumis RON scene.
+//! `lumis import`: converts a Mitsuba XML scene (Mitsuba 3, or 0.x upgraded as Mitsuba 3 reads
+//! it) to a lumis RON scene.
 //!
 //! The subset converted is what lumis renders the same way (see docs/scene-format.md,
-//! "Importing Mitsuba 3 scenes"): a `perspective` sensor with an `hdrfilm` and an
-//! `independent` sampler, the `direct` integrator, `obj`, `ply`, `rectangle`, `cube`, `sphere`
-//! and `disk` shapes, `diffuse`, `roughconductor` and `conductor` BSDFs (`twosided` or not),
-//! `area`, `envmap`, `point` and `directional` emitters, `default` parameters and `$`
-//! substitution. Every element or property it cannot convert is reported with its line, never
-//! dropped silently; conventions that differ without changing the expected image are noted.
+//! "Importing Mitsuba scenes"). Every element or property it cannot convert is reported with
+//! its file and line, never dropped silently; conventions that differ without changing the
+//! expected image are noted.
 
 mod mitsuba;
 
-pub use mitsuba::{Conversion, Problem, convert};
+pub use mitsuba::{Conversion, Problem, Version, convert, convert_file};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use std::path::Path;
 
 /// `lumis import SCENE.xml -o SCENE.ron`: converts, prints notes and problems (as
 /// `FILE:LINE: ...`), and writes the RON scene atomically unless something could not be
-/// converted (or `partial`).
+/// converted (or `partial`; a scene without a convertible sensor is never written).
 pub fn run(scene: &Path, output: &Path, defines: &[String], partial: bool) -> Result<()> {
-    let xml = std::fs::read_to_string(scene)
-        .with_context(|| format!("cannot read {}", scene.display()))?;
     let defines = defines
         .iter()
         .map(|d| {
             d.split_once('=')
                 .map(|(n, v)| (n.trim().to_string(), v.to_string()))
-                .with_context(|| format!("-D `{d}` is not NAME=VALUE"))
+                .ok_or_else(|| anyhow::anyhow!("-D `{d}` is not NAME=VALUE"))
         })
         .collect::<Result<Vec<_>>>()?;
-    let xml_dir = scene.parent().unwrap_or(Path::new(""));
     let out_dir = output.parent().unwrap_or(Path::new(""));
-    let conversion = convert(&xml, xml_dir, out_dir, &defines)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", scene.display()))?;
+    let conversion = convert_file(scene, out_dir, &defines).map_err(|e| anyhow::anyhow!(e))?;
     for note in &conversion.notes {
-        eprintln!("note: {}:{}: {}", scene.display(), note.line, note.message);
+        eprintln!("note: {note}");
     }
     for problem in &conversion.problems {
         eprintln!(
-            "{}: {}:{}: {}",
-            if partial { "skipped" } else { "error" },
-            scene.display(),
-            problem.line,
-            problem.message
+            "{}: {problem}",
+            if partial && !conversion.camera_missing {
+                "skipped"
+            } else {
+                "error"
+            }
+        );
+    }
+    if conversion.camera_missing {
+        bail!(
+            "{} has no sensor lumis can convert: nothing written, even with --partial (a \
+             stand-in camera would render another image)",
+            scene.display()
         );
     }
     if !conversion.problems.is_empty() && !partial {

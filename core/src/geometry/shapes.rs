@@ -126,6 +126,39 @@ impl Mesh {
         (0.5 * (b - a).cross(c - a).length()) as f32
     }
 
+    /// Vertex normals as Mitsuba 3 computes them for a mesh without any
+    /// (`Mesh::recompute_vertex_normals`, after Thürmer and Wüthrich, "Computing vertex normals
+    /// from polygonal facets", JGT 1998): each vertex sums the unit normals of its triangles
+    /// weighted by the triangles' angles at it, in f32; a vertex of degenerate triangles only
+    /// gets (1, 0, 0), as in Mitsuba (no ray meets those triangles).
+    pub fn smooth_normals(&self) -> Vec<Vec3> {
+        let mut sums = vec![Vec3::ZERO; self.positions.len()];
+        for t in &self.indices {
+            let v = t.map(|i| self.positions[i as usize]);
+            let n = (v[1] - v[0]).cross(v[2] - v[0]);
+            let length_squared = n.length_squared();
+            if length_squared.is_nan() || length_squared <= 0.0 {
+                continue;
+            }
+            let n = n / length_squared.sqrt();
+            for j in 0..3 {
+                let a = (v[(j + 1) % 3] - v[j]).normalize_or_zero();
+                let b = (v[(j + 2) % 3] - v[j]).normalize_or_zero();
+                sums[t[j] as usize] += n * unit_angle(a, b);
+            }
+        }
+        sums.into_iter()
+            .map(|n| {
+                let length = n.length();
+                if length > 0.0 && length.is_finite() {
+                    n / length
+                } else {
+                    Vec3::X
+                }
+            })
+            .collect()
+    }
+
     /// The unit geometric normal of triangle `i`, or zero for a degenerate triangle.
     pub fn triangle_normal(&self, i: usize) -> Vec3 {
         let [a, b, c] = self.triangle(i);
@@ -140,6 +173,16 @@ fn merge_attribute<T>(kept: &mut Option<Vec<T>>, other: Option<Vec<T>>, empty: b
         (Some(a), Some(b)) => a.extend(b),
         (None, Some(b)) if empty => *kept = Some(b),
         _ => *kept = None,
+    }
+}
+
+/// The angle between unit vectors `a` and `b`, accurate also near 0 and π (Mitsuba's
+/// `unit_angle`).
+fn unit_angle(a: Vec3, b: Vec3) -> f32 {
+    if a.dot(b) < 0.0 {
+        std::f32::consts::PI - 2.0 * ((a + b).length() / 2.0).min(1.0).asin()
+    } else {
+        2.0 * ((a - b).length() / 2.0).min(1.0).asin()
     }
 }
 
@@ -409,6 +452,44 @@ mod tests {
         let d = disk(256);
         let area: f32 = (0..256).map(|i| d.triangle_area(i)).sum();
         assert!((area - std::f32::consts::PI).abs() < 1e-3);
+    }
+
+    /// Smooth normals weigh each face by its angle at the vertex: a corner of a cube (three
+    /// right angles, one per face, with the faces split into triangles) gets the diagonal; a
+    /// flat fan gets the plane's normal whatever the triangles' sizes.
+    #[test]
+    fn smooth_normals_are_angle_weighted() {
+        let mut cube = cube();
+        cube.normals = None;
+        for (p, n) in cube.positions.iter().zip(cube.smooth_normals()) {
+            // Each corner vertex belongs to one face here (the cube's faces do not share
+            // vertices): its normal is that face's.
+            assert!((n.length() - 1.0).abs() < 1e-6, "{p}: {n}");
+        }
+        let shared = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            normals: None,
+            // Three faces meeting at the origin at right angles, facing outward from (1,1,1).
+            indices: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2]],
+            uvs: None,
+        };
+        let n = shared.smooth_normals()[0];
+        assert!(n.abs_diff_eq(-Vec3::ONE.normalize(), 1e-6), "{n}");
+        // Vertex 1 is in two faces with angles of 45°: their normals -z and -y, equally.
+        let n = shared.smooth_normals()[1];
+        assert!(
+            n.abs_diff_eq(Vec3::new(0.0, -1.0, -1.0).normalize(), 1e-6),
+            "{n}"
+        );
+        let fan = disk(7);
+        for n in (Mesh {
+            normals: None,
+            ..fan
+        })
+        .smooth_normals()
+        {
+            assert!(n.abs_diff_eq(Vec3::Z, 1e-6), "{n}");
+        }
     }
 
     #[test]

@@ -87,6 +87,79 @@ pub struct FilmDescription {
     /// Exposure of the PNG preview, in stops.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub exposure: f32,
+    /// The reconstruction filter; default the box over the pixel.
+    #[serde(default, skip_serializing_if = "FilterDescription::is_box")]
+    pub filter: FilterDescription,
+}
+
+/// A reconstruction filter: `(type: "box")`, `(type: "tent", radius: 1)` or
+/// `(type: "gaussian", stddev: 0.5)` (Mitsuba 3's filters; see `lumis_core::filter`).
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(rename = "Filter", deny_unknown_fields)]
+pub struct FilterDescription {
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// `tent`: half-width in pixels (default 1).
+    #[serde(default, with = "bare", skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    /// `gaussian`: standard deviation in pixels (default 0.5); the filter is cut at 4 of them.
+    #[serde(default, with = "bare", skip_serializing_if = "Option::is_none")]
+    pub stddev: Option<f32>,
+}
+
+impl Default for FilterDescription {
+    fn default() -> Self {
+        FilterDescription {
+            kind: "box".into(),
+            radius: None,
+            stddev: None,
+        }
+    }
+}
+
+impl FilterDescription {
+    /// Whether this is the default, the box.
+    pub fn is_box(&self) -> bool {
+        *self == FilterDescription::default()
+    }
+
+    /// The filter, or why it cannot be built.
+    pub fn build(&self) -> Result<crate::filter::Filter, String> {
+        use crate::filter::Filter;
+        let no = |name: &str, given: bool| {
+            if given {
+                Err(format!(
+                    "filter `{name}` does not apply to a {} filter",
+                    self.kind
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        match self.kind.as_str() {
+            "box" => {
+                no("radius", self.radius.is_some())?;
+                no("stddev", self.stddev.is_some())?;
+                Ok(Filter::box_filter())
+            }
+            "tent" => {
+                no("stddev", self.stddev.is_some())?;
+                Filter::tent(self.radius.unwrap_or(1.0))
+            }
+            "gaussian" => {
+                no("radius", self.radius.is_some())?;
+                Filter::gaussian(self.stddev.unwrap_or(0.5))
+            }
+            other => {
+                const KINDS: [&str; 3] = ["box", "tent", "gaussian"];
+                Err(format!(
+                    "unknown filter type `{other}`{}; known filters: {}",
+                    crate::error::did_you_mean(other, KINDS),
+                    KINDS.join(", ")
+                ))
+            }
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
@@ -137,7 +210,8 @@ impl Default for SamplerDescription {
     }
 }
 
-/// A shape: `type` is `gltf`, `obj`, `ply`, `rectangle`, `cube`, `disk` or `sphere`.
+/// A shape: `type` is `gltf`, `obj`, `ply`, `serialized`, `rectangle`, `cube`, `disk` or
+/// `sphere`.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(rename = "Shape", deny_unknown_fields)]
 pub struct ShapeDescription {
@@ -164,6 +238,13 @@ pub struct ShapeDescription {
     /// Meshes: turn every face (its front side and its normals) the other way.
     #[serde(default, with = "bare", skip_serializing_if = "Option::is_none")]
     pub flip_normals: Option<bool>,
+    /// `obj`, `ply`, `serialized`: when the file has no vertex normals (or `face_normals`
+    /// drops them: then not), compute smooth ones as Mitsuba does (angle-weighted).
+    #[serde(default, with = "bare", skip_serializing_if = "Option::is_none")]
+    pub smooth_normals: Option<bool>,
+    /// `serialized`: which mesh of the file (from 0, the default).
+    #[serde(default, with = "bare", skip_serializing_if = "Option::is_none")]
+    pub shape_index: Option<u32>,
     /// `gltf`: also add the file's `KHR_lights_punctual` point and directional lights.
     #[serde(default, with = "bare", skip_serializing_if = "Option::is_none")]
     pub lights: Option<bool>,
@@ -434,7 +515,7 @@ mod tests {
     /// Every part of the schema, written by hand.
     const FULL: &str = r#"Scene(
         camera: (position: (1, 2, 3), target: (0, 0.5, 0), up: (0, 0, 1), fov: 39.3),
-        film: (width: 64, height: 48, output: "out/a b.exr", crop: (x: 1, y: 2, width: 30, height: 20), exposure: -1.5),
+        film: (width: 64, height: 48, output: "out/a b.exr", crop: (x: 1, y: 2, width: 30, height: 20), exposure: -1.5, filter: (type: "gaussian", stddev: 0.25)),
         sampler: (spp: 16, seed: 7, jitter: false),
         integrator: (type: "alpha", samples: 8, mode: "fixed", fixed: 0.3, aovs: ["alpha", "samples"]),
         bsdfs: {
@@ -445,6 +526,7 @@ mod tests {
         shapes: [
             (type: "rectangle", bsdf: "white", transform: (scale: (2, 2, 1), rotate: [(axis: (1, 0, 0), angle: -90), (axis: (0, 1, 0), angle: 30)], translate: (0, 1, 0))),
             (type: "gltf", file: "meshes/bunny.glb", mesh: "bunny", face_normals: true, lights: true),
+            (type: "serialized", file: "a.serialized", bsdf: "grey", shape_index: 2, smooth_normals: true),
             (type: "obj", file: "a.obj", bsdf: "grey", flip_normals: true, transform: (look_at: (origin: (0, 3, 0), target: (0, 0, 0), up: (1, 0, 0)))),
             (type: "sphere", bsdf: "metal", center: (0, 1, 0), radius: 0.25, emitter: (type: "area", radiance: (17, 12, 4), two_sided: true)),
             (type: "disk", bsdf: "grey", segments: 32, transform: (matrix: (1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1))),
@@ -482,6 +564,7 @@ mod tests {
                 output: None,
                 crop: None,
                 exposure: 0.0,
+                filter: FilterDescription::default(),
             },
             sampler: SamplerDescription {
                 spp: 4,
@@ -502,6 +585,8 @@ mod tests {
                 mesh: None,
                 face_normals: None,
                 flip_normals: None,
+                smooth_normals: None,
+                shape_index: None,
                 lights: None,
                 center: None,
                 radius: Some(0.5),

@@ -6,7 +6,7 @@ use super::overrides::Override;
 use super::references::SceneReferences;
 use super::shape_check::check_shape;
 use super::transform::transform_matrix;
-use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply};
+use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply, serialized};
 use crate::bsdf::{Absorber, Bsdf, BsdfFlags};
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::{SceneError, did_you_mean};
@@ -132,6 +132,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     let mut film_memory = crate::limits::MemoryEstimate::default();
     budget::add_film(&mut film_memory, &window, 3);
     film_memory.check(&memory_limit).map_err(err)?;
+    let filter = film.filter.build().map_err(|e| err(format!("film: {e}")))?;
     if desc.sampler.spp == 0 {
         return Err(err("sampler `spp` must be at least 1".into()));
     }
@@ -301,6 +302,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         window,
         spp: desc.sampler.spp,
         jitter: desc.sampler.jitter,
+        filter,
         seed: desc.sampler.seed,
         geometry: Geometry::new(geometries).with_uv_mappings(uv_mappings),
         bsdfs,
@@ -395,13 +397,35 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
     let scene_err = |m: String| ShapeError::Scene(m);
     let allowed: &[&str] = match shape.kind.as_str() {
         "gltf" => &["file", "mesh", "face_normals", "flip_normals", "lights"],
-        "obj" => &["file", "mesh", "face_normals", "flip_normals"],
-        "ply" => &["file", "face_normals", "flip_normals"],
+        "obj" => &[
+            "file",
+            "mesh",
+            "face_normals",
+            "flip_normals",
+            "smooth_normals",
+        ],
+        "ply" => &["file", "face_normals", "flip_normals", "smooth_normals"],
+        "serialized" => &[
+            "file",
+            "face_normals",
+            "flip_normals",
+            "smooth_normals",
+            "shape_index",
+        ],
         "sphere" => &["center", "radius"],
         "disk" => &["segments", "flip_normals"],
         "rectangle" | "cube" => &["flip_normals"],
         other => {
-            const KINDS: [&str; 7] = ["gltf", "rectangle", "cube", "disk", "sphere", "obj", "ply"];
+            const KINDS: [&str; 8] = [
+                "gltf",
+                "rectangle",
+                "cube",
+                "disk",
+                "sphere",
+                "obj",
+                "ply",
+                "serialized",
+            ];
             return Err(scene_err(format!(
                 "unknown shape type `{other}`{}; known shape types: {}",
                 did_you_mean(other, KINDS),
@@ -417,6 +441,8 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
         ("segments", shape.segments.is_some()),
         ("face_normals", shape.face_normals.is_some()),
         ("flip_normals", shape.flip_normals.is_some()),
+        ("smooth_normals", shape.smooth_normals.is_some()),
+        ("shape_index", shape.shape_index.is_some()),
         ("lights", shape.lights.is_some()),
     ];
     if let Some((name, _)) = given
@@ -450,7 +476,7 @@ fn build_shape(
             gltf::load(&file, shape.mesh.as_deref())
                 .map_err(|m| ShapeError::Asset(file.clone(), m))?
         }
-        "obj" | "ply" => {
+        "obj" | "ply" | "serialized" => {
             let file = shape
                 .file
                 .as_ref()
@@ -458,7 +484,8 @@ fn build_shape(
             let file = base.join(file);
             match shape.kind.as_str() {
                 "obj" => obj::load(&file, shape.mesh.as_deref()),
-                _ => ply::load(&file),
+                "ply" => ply::load(&file),
+                _ => serialized::load(&file, shape.shape_index.unwrap_or(0)),
             }
             .map_err(|m| ShapeError::Asset(file.clone(), m))?
         }
@@ -517,15 +544,22 @@ fn build_shape(
     ))
 }
 
-/// The shape's normal options, then its transform.
+/// The shape's normal options, then its transform; smooth normals (`smooth_normals`) are
+/// computed in world space, where Mitsuba computes them (angles change under non-uniform
+/// scaling).
 fn finish_mesh(shape: &ShapeDescription, mut mesh: Mesh, matrix: &glam::Mat4) -> Mesh {
-    if shape.face_normals == Some(true) {
+    let face_normals = shape.face_normals == Some(true);
+    if face_normals {
         mesh.normals = None;
     }
     if shape.flip_normals == Some(true) {
         mesh = mesh.flipped();
     }
-    mesh.transformed(matrix)
+    let mut mesh = mesh.transformed(matrix);
+    if shape.smooth_normals == Some(true) && !face_normals && mesh.normals.is_none() {
+        mesh.normals = Some(mesh.smooth_normals());
+    }
+    mesh
 }
 
 /// A `gltf` shape without `bsdf`: one part per glTF material, with the BSDF it maps to.

@@ -10,6 +10,7 @@ pub mod obj;
 pub mod overrides;
 pub mod ply;
 pub mod references;
+pub mod serialized;
 pub mod shape_check;
 pub mod syntax;
 pub mod transform;
@@ -17,6 +18,7 @@ pub mod transform;
 use crate::bsdf::{Bsdf, BsdfFlags, Side};
 use crate::camera::Camera;
 use crate::emitter::Emitter;
+use crate::filter::Filter;
 use crate::geometry::{Geometry, Intersection, Ray};
 use crate::output::Window;
 use std::path::PathBuf;
@@ -36,6 +38,8 @@ pub struct Scene {
     /// Camera rays jittered within their pixel; false: through pixel centres (so that runs with
     /// different seeds shade the same points, as `lumis study` needs).
     pub jitter: bool,
+    /// The reconstruction filter, which places each camera sample and weighs it.
+    pub filter: Filter,
     pub geometry: Geometry,
     /// Every BSDF a shape uses (and [`Absorber`](crate::bsdf::Absorber), the back of the
     /// one-sided ones, if there are any).

@@ -3,7 +3,10 @@
 //! Parameters:
 //! - `file` (path, required): an equirectangular (latitude–longitude) RGB OpenEXR image.
 //! - `scale` (float, default 1): multiplies the radiance.
-//! - `rotation` (float, default 0, degrees): turns the map about the y (up) axis.
+//! - `rotation` (float, default 0, degrees): turns the map about `rotation_axis`.
+//! - `rotation_axis` (vector, default (0, 1, 0)): the axis `rotation` turns the map about,
+//!   right-handed; any rotation of the map is one angle about one axis (`lumis import` writes
+//!   a Mitsuba env map's `to_world` so).
 //! - `interpolation` (choice, default `nearest`, or `bilinear`): how radiance varies between
 //!   pixels (below).
 //! - `orientation` (choice, default `lumis`, or `mitsuba`): which way the map faces (below).
@@ -75,8 +78,10 @@ pub enum Orientation {
 #[derive(Clone, Copy, Debug)]
 pub struct MapSettings {
     pub scale: f32,
-    /// About +y, in degrees.
+    /// About `rotation_axis`, in degrees.
     pub rotation_degrees: f32,
+    /// The axis of the rotation, (0, 1, 0) by default; need not be of unit length.
+    pub rotation_axis: Vec3,
     pub interpolation: Interpolation,
     pub orientation: Orientation,
     /// Sample from max(Y − Ȳ, Ȳ/100) instead of Y (MIS compensation).
@@ -88,6 +93,7 @@ impl Default for MapSettings {
         MapSettings {
             scale: 1.0,
             rotation_degrees: 0.0,
+            rotation_axis: Vec3::Y,
             interpolation: Interpolation::Nearest,
             orientation: Orientation::Lumis,
             compensation: false,
@@ -103,6 +109,10 @@ pub struct EnvironmentMap {
     sampling: Sampling,
     /// Rotation about +y (with the orientation's half turn), as (cos, sin).
     rotation: (f32, f32),
+    /// The map's frame when turned about another axis than +y: the columns are where the
+    /// map's own axes go (world = frame · map), the orientation's half turn included. `None`:
+    /// `rotation` alone, the arithmetic of a turn about +y.
+    frame: Option<[Vec3; 3]>,
 }
 
 /// A pixel's radiance, and beside it the number `pdf` reads at the same pixel: a direction's
@@ -264,12 +274,38 @@ impl EnvironmentMap {
             Orientation::Lumis => (cos, sin),
             Orientation::Mitsuba => (-cos, -sin),
         };
+        let axis = settings.rotation_axis.as_dvec3();
+        if !(axis.is_finite() && axis.length_squared() > 0.0) {
+            return Err(format!(
+                "`rotation_axis` must be a finite non-zero vector, found {}",
+                settings.rotation_axis
+            ));
+        }
+        let frame = (axis.x != 0.0 || axis.z != 0.0).then(|| {
+            let turn = glam::DMat3::from_axis_angle(
+                axis.normalize(),
+                (settings.rotation_degrees as f64).to_radians(),
+            );
+            let half = match settings.orientation {
+                Orientation::Lumis => glam::DMat3::IDENTITY,
+                Orientation::Mitsuba => glam::DMat3::from_rotation_y(std::f64::consts::PI),
+            };
+            let m = turn * half;
+            [m.x_axis, m.y_axis, m.z_axis].map(|c| c.as_vec3())
+        });
+        // A turn about −y is one about +y the other way.
+        let rotation = if axis.y < 0.0 && frame.is_none() {
+            (rotation.0, -rotation.1)
+        } else {
+            rotation
+        };
         Ok(EnvironmentMap {
             width,
             height,
             texels,
             sampling,
             rotation,
+            frame,
         })
     }
 
@@ -283,11 +319,20 @@ impl EnvironmentMap {
     /// [`Self::to_uv`] of each lane's direction: u, v and sin θ.
     #[inline(always)]
     fn to_uv_lanes<L: Lanes>(&self, d: V3<L>) -> (L, L, L) {
-        let (c, s) = (L::splat(self.rotation.0), L::splat(self.rotation.1));
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
-        // Undo the rotation about +y.
-        let (x, z) = (c * d.x - s * d.z, s * d.x + c * d.z);
-        let cos_theta = d.y.clamp(-one, one);
+        let (x, y, z) = match &self.frame {
+            // Undo the rotation about +y.
+            None => {
+                let (c, s) = (L::splat(self.rotation.0), L::splat(self.rotation.1));
+                (c * d.x - s * d.z, d.y, s * d.x + c * d.z)
+            }
+            // The map's coordinates: the frame's transpose (its inverse) times d.
+            Some(frame) => {
+                let [x, y, z] = frame.map(|axis| V3::splat(axis).dot(d));
+                (x, y, z)
+            }
+        };
+        let cos_theta = y.clamp(-one, one);
         let phi = x.atan2(-z);
         let u = ((phi + L::splat(PI)) / L::splat(TAU)).clamp(zero, one);
         let v = (cos_theta.acos() / L::splat(PI)).clamp(zero, one);
@@ -299,10 +344,15 @@ impl EnvironmentMap {
     /// texel `eval` will read, not to replace it.
     #[inline]
     fn approximate_uv(&self, d: Vec3) -> Vec2 {
-        let (c, s) = self.rotation;
-        let (x, z) = (c * d.x - s * d.z, -(s * d.x + c * d.z));
+        let (x, y, z) = match &self.frame {
+            None => {
+                let (c, s) = self.rotation;
+                (c * d.x - s * d.z, d.y, -(s * d.x + c * d.z))
+            }
+            Some([a, b, c]) => (a.dot(d), b.dot(d), -c.dot(d)),
+        };
         let u = (approximate_atan2(x, z) + PI) / TAU;
-        let v = approximate_acos(d.y.clamp(-1.0, 1.0)) / PI;
+        let v = approximate_acos(y.clamp(-1.0, 1.0)) / PI;
         Vec2::new(u.clamp(0.0, 1.0), v.clamp(0.0, 1.0))
     }
 
@@ -320,8 +370,13 @@ impl EnvironmentMap {
         let (sin_theta, cos_theta) = theta.sin_cos();
         let (sin_phi, cos_phi) = phi.sin_cos();
         let (x, z) = (sin_theta * sin_phi, -sin_theta * cos_phi);
-        let (c, s) = (L::splat(self.rotation.0), L::splat(self.rotation.1));
-        V3::new(c * x + s * z, cos_theta, -s * x + c * z)
+        match &self.frame {
+            None => {
+                let (c, s) = (L::splat(self.rotation.0), L::splat(self.rotation.1));
+                V3::new(c * x + s * z, cos_theta, -s * x + c * z)
+            }
+            Some([a, b, c]) => V3::splat(*a) * x + V3::splat(*b) * cos_theta + V3::splat(*c) * z,
+        }
     }
 
     /// Solid-angle density of the direction at map coordinates `uv`.
@@ -708,6 +763,7 @@ fn approximate_acos(x: f32) -> f32 {
 pub const NAME: &str = "envmap";
 pub const FILE: &str = "file";
 pub const ROTATION: &str = "rotation";
+pub const ROTATION_AXIS: &str = "rotation_axis";
 pub const INTERPOLATION: &str = "interpolation";
 pub const ORIENTATION: &str = "orientation";
 pub const COMPENSATION: &str = "compensation";
@@ -733,7 +789,15 @@ static PARAMS: &[ParamSpec] = &[
             max: 360.0,
         },
         unit: "degrees",
-        description: "rotation of the map about the up (y) axis",
+        description: "rotation of the map about `rotation_axis`",
+    },
+    ParamSpec {
+        name: ROTATION_AXIS,
+        kind: ParamKind::Vec3 {
+            default: Some([0.0, 1.0, 0.0]),
+        },
+        unit: "",
+        description: "the axis `rotation` turns the map about (right-handed; not zero)",
     },
     ParamSpec {
         name: INTERPOLATION,
@@ -769,6 +833,7 @@ fn create(params: &mut Params, context: &EmitterContext) -> Result<Arc<dyn Emitt
     let settings = MapSettings {
         scale: params.float(crate::SCALE.name)?,
         rotation_degrees: params.float(ROTATION)?,
+        rotation_axis: params.vec3(ROTATION_AXIS)?,
         interpolation: match params.choice(INTERPOLATION)? {
             BILINEAR => Interpolation::Bilinear,
             _ => Interpolation::Nearest,
@@ -874,6 +939,61 @@ mod tests {
                 "rotation {rotation}: {worst_u}, {worst_v}"
             );
         }
+    }
+
+    /// A turn about any axis carries the map's directions as that rotation does: about +x by
+    /// 90°, the map's up (+y) looks along +z; about (1, 1, 1) by 120°, +x goes to +y; about an
+    /// axis a hair off +y (the general frame) as about +y (the turn's own arithmetic), within
+    /// f32 rounding; and map coordinates of a turned direction come back to where they were.
+    #[test]
+    fn turns_about_any_axis_carry_directions_as_the_rotation_does() {
+        let turned = |degrees: f32, axis: Vec3, orientation| {
+            let settings = MapSettings {
+                rotation_degrees: degrees,
+                rotation_axis: axis,
+                orientation,
+                ..MapSettings::default()
+            };
+            EnvironmentMap::with_settings(8, 4, vec![Rgb::ONE; 32], &settings).unwrap()
+        };
+        let up = Vec2::new(0.3, 0.0);
+        let about_x = turned(90.0, Vec3::X, Orientation::Lumis);
+        assert!(about_x.to_direction(up).abs_diff_eq(Vec3::Z, 1e-6));
+        let diagonal = turned(120.0, Vec3::ONE, Orientation::Lumis);
+        // The map's −x (u = 1/4 on the equator) goes where a turn of (1, 1, 1) takes −x: −y.
+        let quarter = Vec2::new(0.25, 0.5);
+        assert!(
+            diagonal
+                .to_direction(quarter)
+                .abs_diff_eq(Vec3::NEG_Y, 1e-6),
+            "{}",
+            diagonal.to_direction(quarter)
+        );
+        for orientation in [Orientation::Lumis, Orientation::Mitsuba] {
+            for degrees in [0.0, 30.0, -135.0] {
+                let general = turned(degrees, Vec3::new(1e-6, 1.0, 0.0), orientation);
+                let about_y = turned(degrees, Vec3::Y, orientation);
+                assert!(general.frame.is_some() && about_y.frame.is_none());
+                for uv in [
+                    Vec2::new(0.5, 0.5),
+                    Vec2::new(0.1, 0.3),
+                    Vec2::new(0.8, 0.9),
+                ] {
+                    let (a, b) = (general.to_direction(uv), about_y.to_direction(uv));
+                    assert!(a.abs_diff_eq(b, 1e-5), "{degrees}: {a} vs {b}");
+                    let (back, _) = general.to_uv(a);
+                    assert!(back.abs_diff_eq(uv, 1e-5), "{degrees}: {back} vs {uv}");
+                }
+            }
+        }
+        let flat = MapSettings {
+            rotation_axis: Vec3::ZERO,
+            ..MapSettings::default()
+        };
+        let e = EnvironmentMap::with_settings(8, 4, vec![Rgb::ONE; 32], &flat)
+            .map(|_| ())
+            .unwrap_err();
+        assert!(e.contains("rotation_axis"), "{e}");
     }
 
     #[test]

@@ -1,9 +1,11 @@
 //! Built-in emitter plugins, one per file, each registered under its scene-file name.
 
 pub mod area;
+pub mod constant;
 pub mod directional;
 pub mod envmap;
 pub mod point;
+pub mod spot;
 
 use lumis_core::emitter::EmitterContext;
 use lumis_core::params::{ParamKind, ParamSpec, PluginError};

@@ -1,4 +1,4 @@
-//! Point and directional lights are Dirac deltas: flagged as such (integrators then skip BSDF
+//! Point, spot and directional lights are Dirac deltas: flagged as such (integrators then skip BSDF
 //! sampling toward them), reached by no ray (`eval` and `pdf_direction` are zero in every
 //! direction), and their one sample per point carries all their light (its irradiance is tested
 //! in `emitters.rs`). Area and environment lights are not deltas.
@@ -37,6 +37,11 @@ fn delta_lights_are_flagged_and_reached_by_no_ray() {
             "\"direction\": (0, -1, -1), \"irradiance\": 5",
             None,
         ),
+        emitter(
+            "spot",
+            "\"position\": (1, 3, 0), \"direction\": (-0.5, -4, 2), \"intensity\": 4",
+            None,
+        ),
     ] {
         assert!(light.is_delta());
         // Whatever the direction, even the light's own, and with or without a surface hit.
@@ -54,6 +59,7 @@ fn delta_lights_are_flagged_and_reached_by_no_ray() {
     let square = ShapeGeometry::Mesh(geometry::rectangle());
     assert!(!emitter("area", "\"radiance\": 1", Some(&square)).is_delta());
     assert!(!emitter("envmap", "\"file\": \"scenes/envmaps/studio.exr\"", None).is_delta());
+    assert!(!emitter("constant", "\"radiance\": 1", None).is_delta());
 }
 
 /// `scale` multiplies a delta light's intensity or irradiance; a point light out of f32 range

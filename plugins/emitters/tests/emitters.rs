@@ -124,6 +124,12 @@ fn hot_pixel_map(w: usize, h: usize, x: usize, y: usize) -> EnvironmentMap {
     EnvironmentMap::new(w, h, pixels, 1.0, 0.0)
 }
 
+/// The studio map turned by 40° about a tilted axis, in Mitsuba's orientation (as `lumis
+/// import` writes a Mitsuba env map under a general rotation).
+const TILTED_STUDIO: &str = "\"file\": \"scenes/envmaps/studio.exr\", \"rotation\": 40, \
+                             \"rotation_axis\": (1, 2, -0.5), \"orientation\": \"mitsuba\", \
+                             \"interpolation\": \"bilinear\"";
+
 /// A named chi-square case: how to run it, and its bins.
 type Chi2Case = (
     String,
@@ -234,6 +240,27 @@ fn chi_square_sampling_matches_pdf() {
             ..Chi2Test::default()
         },
     ));
+    // The same map turned about a tilted axis (the general frame, not the turn about y), and
+    // the uniform environment over the whole sphere.
+    for (name, kind, params) in [
+        ("envmap studio tilted", "envmap", TILTED_STUDIO),
+        ("constant", "constant", "\"radiance\": (1, 2, 3)"),
+    ] {
+        let light = emitter(kind, params, None);
+        cases.push((
+            name.into(),
+            Box::new(move |t: &Chi2Test| {
+                t.run(
+                    |s| light.sample_direction(&r, s.next_2d()).map(|ls| ls.wi),
+                    |wi| light.pdf_direction(&r, wi, None) as f64,
+                )
+            }),
+            Chi2Test {
+                axis: Vec3::Y,
+                ..Chi2Test::default()
+            },
+        ));
+    }
     let alpha = sidak(FAMILY_FALSE_ALARM, cases.len());
     let outcomes = run_side_by_side(&cases, |(_, run, test)| run(test));
     for ((name, _, _), outcome) in cases.iter().zip(outcomes) {
@@ -281,22 +308,29 @@ fn samples_agree_with_eval_and_pdf() {
             }
         }
     }
-    let studio = emitter("envmap", "\"file\": \"scenes/envmaps/studio.exr\"", None);
     let r = ReferencePoint {
         position: Vec3::ZERO,
     };
-    for _ in 0..20_000 {
-        let Some(ls) = studio.sample_direction(&r, s.next_2d()) else {
-            continue;
-        };
-        let pdf = studio.pdf_direction(&r, ls.wi, None);
-        assert!(
-            (pdf - ls.pdf).abs() <= 1e-3 * ls.pdf,
-            "envmap pdf {pdf} vs {}",
-            ls.pdf
-        );
-        assert_eq!(studio.eval(ls.wi, None), ls.radiance);
-        assert!(ls.radiance.min_element() >= 0.0 && ls.radiance.is_finite());
+    for (kind, params) in [
+        ("envmap", "\"file\": \"scenes/envmaps/studio.exr\""),
+        ("envmap", TILTED_STUDIO),
+        ("constant", "\"radiance\": (1, 2, 3), \"scale\": 2"),
+    ] {
+        let light = emitter(kind, params, None);
+        for _ in 0..20_000 {
+            let Some(ls) = light.sample_direction(&r, s.next_2d()) else {
+                continue;
+            };
+            let pdf = light.pdf_direction(&r, ls.wi, None);
+            assert!(
+                (pdf - ls.pdf).abs() <= 1e-3 * ls.pdf,
+                "{params}: pdf {pdf} vs {}",
+                ls.pdf
+            );
+            assert_eq!(light.eval(ls.wi, None), ls.radiance, "{params}");
+            assert!(ls.radiance.min_element() >= 0.0 && ls.radiance.is_finite());
+            assert!((ls.wi.length() - 1.0).abs() < 1e-5, "{params}: {}", ls.wi);
+        }
     }
 }
 
@@ -322,6 +356,7 @@ fn eval_pdf_is_eval_and_pdf_direction_bit_for_bit() {
         "\"file\": \"scenes/envmaps/studio.exr\"",
         "\"file\": \"scenes/envmaps/studio.exr\", \"rotation\": 37",
         "\"file\": \"scenes/envmaps/studio.exr\", \"interpolation\": \"bilinear\"",
+        TILTED_STUDIO,
     ] {
         let map = emitter("envmap", params, None);
         let r = ReferencePoint {
@@ -432,6 +467,103 @@ fn point_light_gives_i_cos_over_d2_exactly() {
             )
             .is_none()
     );
+}
+
+/// A spot light gives I·falloff(θ)·cos / d², with Mitsuba's falloff (`spot.cpp`): 1 within the
+/// beam width, (cutoff − θ)/(cutoff − beam) between beam and cut-off, 0 from the cut-off on.
+/// Points at chosen angles from the axis: in the beam, half-way through the transition, just
+/// inside and just outside the cut-off, behind the light.
+#[test]
+fn spot_light_gives_i_falloff_cos_over_d2_exactly() {
+    let position = Vec3::new(1.0, 3.0, 0.0);
+    let axis = Vec3::new(0.0, -1.0, 0.3).normalize();
+    let light = emitter(
+        "spot",
+        "\"position\": (1, 3, 0), \"direction\": (0, -1, 0.3), \"intensity\": 8, \
+         \"cutoff_angle\": 30, \"beam_width\": 10",
+        None,
+    );
+    // A direction at `degrees` from the axis, turned about x (the axis lies in the y–z plane).
+    let at_angle = |degrees: f32| glam::Quat::from_rotation_x(degrees.to_radians()) * axis;
+    for (degrees, falloff) in [
+        (0.0f64, 1.0f64),
+        (9.0, 1.0),
+        (20.0, 0.5),
+        (25.0, 0.25),
+        (29.9, 0.005),
+        (30.1, 0.0),
+        (90.0, 0.0),
+        (180.0, 0.0),
+    ] {
+        let x = position + at_angle(degrees as f32) * 2.5;
+        let n = -at_angle(degrees as f32 * 0.8);
+        let (e, se) = irradiance(light.as_ref(), x, n, 4);
+        let to = position - x;
+        let expected =
+            8.0 * falloff * to.normalize().dot(n).max(0.0) as f64 / to.length_squared() as f64;
+        assert_eq!(se, 0.0, "{degrees}°");
+        assert!(
+            (e - expected).abs() <= 2e-4 * expected.max(1e-3),
+            "{degrees}°: E = {e}, expected {expected}"
+        );
+    }
+    // The default beam is 3/4 of the cut-off (15° of 20°): full at 14°, half-way at 17.5°.
+    let default_beam = emitter(
+        "spot",
+        "\"position\": (0, 0, 0), \"direction\": (0, 0, 1), \"intensity\": 1",
+        None,
+    );
+    for (degrees, falloff) in [(14.0f32, 1.0f32), (17.5, 0.5)] {
+        let d = glam::Quat::from_rotation_x(degrees.to_radians()) * Vec3::Z;
+        let sample = default_beam
+            .sample_direction(&ReferencePoint { position: d }, Vec2::ZERO)
+            .unwrap();
+        assert!(
+            (sample.radiance.x - falloff).abs() < 1e-4,
+            "{degrees}°: {}",
+            sample.radiance.x
+        );
+    }
+}
+
+/// A spot light's cone is refused when it has no angle or the beam is wider than the cone;
+/// 180° (every direction but straight back) is a cone.
+#[test]
+fn spot_cones_out_of_range_are_refused() {
+    let create = |params: &str| {
+        let plugin = registry::find::<EmitterPlugin>("spot").unwrap();
+        let values = ron::from_str(&format!("{{{params}}}")).unwrap();
+        Params::new("spot", plugin.params, values)
+            .map_err(|e| e.to_string())
+            .and_then(|mut p| {
+                (plugin.create)(&mut p, &EmitterContext { shape: None })
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
+            })
+    };
+    let base = "\"position\": (0, 0, 0), \"intensity\": 1";
+    for (extra, expect) in [
+        (
+            "\"direction\": (0, 0, 1), \"cutoff_angle\": 0",
+            "cutoff_angle",
+        ),
+        (
+            "\"direction\": (0, 0, 1), \"cutoff_angle\": 181",
+            "cutoff_angle",
+        ),
+        (
+            "\"direction\": (0, 0, 1), \"cutoff_angle\": 20, \"beam_width\": 25",
+            "beam_width",
+        ),
+        ("\"direction\": (0, 0, 0)", "direction"),
+    ] {
+        let e = create(&format!("{base}, {extra}")).unwrap_err();
+        assert!(e.contains(expect), "{extra}: {e}");
+    }
+    create(&format!(
+        "{base}, \"direction\": (0, 0, 1), \"cutoff_angle\": 180"
+    ))
+    .unwrap();
 }
 
 #[test]
@@ -684,6 +816,16 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
             vec![Vec3::ZERO],
         ),
         (
+            "tilted envmap",
+            emitter("envmap", TILTED_STUDIO, None),
+            vec![Vec3::ZERO],
+        ),
+        (
+            "constant envmap",
+            emitter("constant", "\"radiance\": (1, 2, 3)", None),
+            vec![Vec3::ZERO],
+        ),
+        (
             "point",
             emitter(
                 "point",
@@ -691,6 +833,16 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                 None,
             ),
             vec![Vec3::new(1.0, 0.0, 4.0), Vec3::new(1.0, 3.0, 0.0)],
+        ),
+        (
+            "spot",
+            emitter(
+                "spot",
+                "\"position\": (1, 3, 0), \"direction\": (0, -1, 0.2), \
+                 \"intensity\": (4, 8, 12), \"cutoff_angle\": 30",
+                None,
+            ),
+            vec![Vec3::new(1.0, 0.0, 0.4), Vec3::new(1.0, 0.0, 4.0)],
         ),
         (
             "directional",
@@ -763,13 +915,16 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                 }
             }
             // Area lights have five references or more, the others one or two.
-            let area = !(name.contains("envmap") || *name == "point" || *name == "directional");
+            let area = !(name.contains("envmap")
+                || *name == "point"
+                || *name == "spot"
+                || *name == "directional");
             let least = if area { 2_500 } else { 900 };
             assert!(
                 some >= least,
                 "{name}, {width} lanes: only {some} samples compared"
             );
-            if name.starts_with("one-sided") || *name == "point" {
+            if name.starts_with("one-sided") || *name == "point" || *name == "spot" {
                 assert!(none > 0, "{name}: no failed sample compared");
             }
             if area {
@@ -805,6 +960,7 @@ fn eval_pdf_batches_give_what_single_calls_give_bit_for_bit() {
             "\"file\": \"scenes/envmaps/studio.exr\", \"interpolation\": \"bilinear\", \
              \"orientation\": \"mitsuba\", \"rotation\": -75",
         ),
+        ("tilted envmap", TILTED_STUDIO),
     ];
     let special = [
         Vec3::Y,

@@ -121,7 +121,8 @@ impl Converter {
             "roughplastic" => self.plastic(p, true),
             "dielectric" | "thindielectric" | "roughdielectric" => self.dielectric(p),
             other => {
-                self.problem(p.line, format!("BSDF `{other}` is not converted"));
+                let other = other.to_string();
+                self.refuse(p, format!("BSDF `{other}` is not converted"));
                 Ok(None)
             }
         };
@@ -153,7 +154,25 @@ impl Converter {
         p: &mut Properties,
         mut spec: PluginSpec,
     ) -> Result<Option<PluginSpec>, String> {
-        if let Some((material, l)) = p.string("material")?
+        let material = match p.string("material")? {
+            None if !p.has("eta") && !p.has("k") => {
+                // Files older than Mitsuba 2 meant copper by a conductor without a material.
+                let default = self.conductor_default_material();
+                if default != conductor::NONE {
+                    self.note(
+                        p.line,
+                        format!(
+                            "a conductor without `material` in a Mitsuba {} file is `{default}`, \
+                             as that version meant (Mitsuba 3's default is `none`, a mirror)",
+                            self.version()
+                        ),
+                    );
+                }
+                Some((default.to_string(), p.line))
+            }
+            material => material,
+        };
+        if let Some((material, l)) = material
             && material != conductor::NONE
         {
             if let Err(e) = fresnel::named_conductor(&material) {

@@ -1,15 +1,16 @@
-//! File names: resolved against the XML file's folder, written relative to the RON file's.
+//! File names: found where Mitsuba finds them (`files.rs`), written relative to the RON file's
+//! folder.
 
 use std::path::{Component, Path, PathBuf};
 
-/// The file `name` of an XML file in `xml_dir`, as a RON file in `out_dir` must write it
-/// (absolute names as they are, `/` as the separator).
-pub(super) fn as_written_from(name: &str, xml_dir: &Path, out_dir: &Path) -> String {
-    let path = Path::new(name);
-    if path.is_absolute() {
+/// The file at `found` (where a relative name `name` of the XML was found), as a RON file in
+/// `out_dir` must write it: relative to `out_dir`, `/` as the separator; an absolute `name` as
+/// it is.
+pub(super) fn found_as_written(name: &str, found: &Path, out_dir: &Path) -> String {
+    if Path::new(name).is_absolute() {
         return name.to_string();
     }
-    relative_path(&xml_dir.join(path), out_dir)
+    relative_path(found, out_dir)
         .to_string_lossy()
         .replace('\\', "/")
 }

@@ -2,6 +2,8 @@
 //! properties through a typed reader that remembers which ones were read, so that every property
 //! no converter read is reported, once, with its line.
 
+use super::files::{Version, substitute};
+use super::spectrum::{self, Spectrum};
 use super::{Report, transform};
 use glam::{DMat4, DVec3};
 use roxmltree::Node;
@@ -19,25 +21,9 @@ pub(super) struct Xml {
 }
 
 impl Xml {
-    /// The `<default>` parameters of `root`, then `defines` over them.
-    pub(super) fn new(root: &Node, defines: &[(String, String)]) -> Result<Self, String> {
-        let mut parameters = BTreeMap::new();
-        for node in root.children().filter(Node::is_element) {
-            if node.tag_name().name() == "default" {
-                let (Some(name), Some(value)) = (node.attribute("name"), node.attribute("value"))
-                else {
-                    return Err(format!(
-                        "line {}: <default> needs `name` and `value`",
-                        line(&node)
-                    ));
-                };
-                parameters.insert(name.to_string(), value.to_string());
-            }
-        }
-        for (name, value) in defines {
-            parameters.insert(name.clone(), value.clone());
-        }
-        Ok(Xml { parameters })
+    /// A reader substituting `parameters` (from [`super::files::Sources`]).
+    pub(super) fn new(parameters: BTreeMap<String, String>) -> Self {
+        Xml { parameters }
     }
 
     /// An attribute with `$name` parameters substituted.
@@ -45,24 +31,9 @@ impl Xml {
         let Some(raw) = node.attribute(name) else {
             return Ok(None);
         };
-        let mut value = raw.to_string();
-        // Longest names first, so that `$spp` does not eat into `$spp2`.
-        let mut names: Vec<&String> = self.parameters.keys().collect();
-        names.sort_by_key(|n| std::cmp::Reverse(n.len()));
-        for n in names {
-            value = value.replace(&format!("${n}"), &self.parameters[n]);
-        }
-        if let Some(at) = value.find('$') {
-            let name: String = value[at + 1..]
-                .chars()
-                .take_while(|c| c.is_alphanumeric() || *c == '_')
-                .collect();
-            return Err(format!(
-                "line {}: `{raw}` uses ${name}, which no <default> or -D defines",
-                line(node)
-            ));
-        }
-        Ok(Some(value))
+        substitute(raw, &self.parameters)
+            .map(Some)
+            .map_err(|e| format!("line {}: {e}", line(node)))
     }
 
     pub(super) fn required(&self, node: &Node, name: &str) -> Result<String, String> {
@@ -115,11 +86,16 @@ pub(super) enum Value {
     Int(i64),
     Bool(bool),
     Str(String),
-    /// `rgb`, or a `spectrum` with one value.
+    /// `rgb` (or a 0.x `srgb`, made linear).
     Color([f64; 3]),
+    /// `spectrum`: one value, or wavelength:value pairs.
+    Spectrum(Spectrum),
     /// `point` or `vector`.
     Vector(DVec3),
     Transform(DMat4),
+    /// A value already reported as not converted (a blackbody spectrum): whatever reads it
+    /// gets nothing, not a default.
+    Refused,
 }
 
 struct Property {
@@ -136,20 +112,79 @@ pub(super) struct Properties<'a, 'input> {
     /// Line of the element.
     pub line: u32,
     pub objects: Vec<Node<'a, 'input>>,
+    /// Refused as a whole ([`super::Converter::refuse`]): `finish` reports nothing more.
+    pub refused: bool,
+    /// From a file older than Mitsuba 2: the names of nested objects are upgraded too
+    /// ([`Properties::name_of`]).
+    legacy: bool,
     properties: BTreeMap<String, Property>,
 }
 
-/// Reads the properties of the plugin element `node`; property elements lumis does not know
-/// become problems.
+/// Mitsuba 3's `upgrade_from_v1` name for a property of a file older than 2.0: camelCase to
+/// snake_case (a capital after a lower-case letter starts a word; the capitals right after it
+/// join that word: `intIOR` is `int_ior`).
+pub(super) fn snake_case(name: &str) -> String {
+    let chars: Vec<char> = name.chars().collect();
+    let mut out = String::with_capacity(name.len() + 4);
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        if i > 0 && chars[i - 1].is_ascii_lowercase() && c.is_ascii_uppercase() {
+            out.push('_');
+            out.push(c.to_ascii_lowercase());
+            while i + 1 < chars.len() && chars[i + 1].is_ascii_uppercase() {
+                i += 1;
+                out.push(chars[i].to_ascii_lowercase());
+            }
+        } else {
+            out.push(c);
+        }
+        i += 1;
+    }
+    out
+}
+
+/// A property name as Mitsuba 3 reads it from a file of `version` inside a plugin of type
+/// `kind`.
+fn upgraded_name(name: &str, kind: &str, version: Version) -> String {
+    if !version.is_legacy() {
+        return name.to_string();
+    }
+    let name = snake_case(name);
+    if kind == "diffuse" && name == "diffuse_reflectance" {
+        return "reflectance".into();
+    }
+    name
+}
+
+/// Why a blackbody spectrum is refused.
+const BLACKBODY: &str = "a blackbody spectrum is not converted: lumis renders in RGB, where \
+                         Mitsuba's RGB variants refuse it too (\"Not implemented for non-spectral \
+                         modes\")";
+
+/// An 8-bit sRGB-encoded value in [0, 1], linear.
+fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Reads the properties of the plugin element `node`, from a file of `version`; property
+/// elements lumis does not know become problems.
 pub(super) fn read<'a, 'input>(
     node: &Node<'a, 'input>,
     xml: &Xml,
     report: &mut Report,
+    version: Version,
 ) -> Result<Properties<'a, 'input>, String> {
     let mut props = Properties {
         kind: xml.attribute(node, "type")?.unwrap_or_default(),
         line: line(node),
         objects: Vec::new(),
+        refused: false,
+        legacy: version.is_legacy(),
         properties: BTreeMap::new(),
     };
     for child in node.children().filter(Node::is_element) {
@@ -174,7 +209,7 @@ pub(super) fn read<'a, 'input>(
             }
             "boolean" => {
                 let v = value()?;
-                Value::Bool(match v.trim() {
+                Value::Bool(match v.trim().to_ascii_lowercase().as_str() {
                     "true" => true,
                     "false" => false,
                     _ => return Err(format!("line {at}: `{v}` is not true or false")),
@@ -189,21 +224,50 @@ pub(super) fn read<'a, 'input>(
                     _ => return Err(format!("line {at}: `{v}` is not 1 or 3 numbers")),
                 }
             }
-            "spectrum" => {
-                let v = xml.attribute(&child, "value")?;
-                match v.as_deref().map(|v| xml.numbers(&child, v)) {
-                    Some(Ok(n)) if n.len() == 1 => Value::Color([n[0]; 3]),
-                    _ => {
-                        report.problem(
-                            at,
-                            "a <spectrum> other than one constant value is not converted",
-                        );
-                        continue;
-                    }
+            // Mitsuba 0.x: an sRGB-encoded colour (numbers in [0, 1] or #rrggbb).
+            "srgb" if version.is_legacy() => {
+                let v = value()?;
+                let encoded: Vec<f64> = match v.trim().strip_prefix('#') {
+                    Some(hex) if hex.len() == 6 && hex.is_ascii() => (0..3)
+                        .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map(f64::from))
+                        .collect::<Result<Vec<f64>, _>>()
+                        .map_err(|_| format!("line {at}: `{v}` is not #rrggbb"))?
+                        .into_iter()
+                        .map(|c| c / 255.0)
+                        .collect(),
+                    _ => xml.numbers(&child, &v)?,
+                };
+                let linear: Vec<f64> = encoded.iter().map(|&c| srgb_to_linear(c)).collect();
+                match linear.as_slice() {
+                    [g] => Value::Color([*g; 3]),
+                    [r, g, b] => Value::Color([*r, *g, *b]),
+                    _ => return Err(format!("line {at}: `{v}` is not 1 or 3 numbers")),
                 }
             }
+            "spectrum" if child.attribute("type") == Some("blackbody") => {
+                report.problem(at, BLACKBODY);
+                Value::Refused
+            }
+            "blackbody" if version.is_legacy() => {
+                report.problem(at, BLACKBODY);
+                Value::Refused
+            }
+            "spectrum" if child.attribute("type").is_some() => {
+                props.objects.push(child);
+                continue;
+            }
+            "spectrum" => {
+                if child.attribute("filename").is_some() {
+                    report.problem(at, "a <spectrum> read from a file is not converted");
+                    continue;
+                }
+                let v = value()?;
+                Value::Spectrum(
+                    spectrum::parse(&v).map_err(|e| format!("line {at}: <spectrum>: {e}"))?,
+                )
+            }
             "point" | "vector" => Value::Vector(xml.vector(&child, 0.0)?),
-            "transform" => match transform::read(&child, xml, report)? {
+            "transform" => match transform::read(&child, xml, report, version)? {
                 Some(m) => Value::Transform(m),
                 None => continue,
             },
@@ -217,7 +281,7 @@ pub(super) fn read<'a, 'input>(
                 continue;
             }
         };
-        let name = xml.required(&child, "name")?;
+        let name = upgraded_name(&xml.required(&child, "name")?, &props.kind, version);
         props.properties.insert(
             name,
             Property {
@@ -227,10 +291,65 @@ pub(super) fn read<'a, 'input>(
             },
         );
     }
+    if version.is_legacy() {
+        props.upgrade_uv_transform();
+    }
     Ok(props)
 }
 
 impl Properties<'_, '_> {
+    /// Mitsuba 3's upgrade of a 0.x texture's `uoffset`, `voffset`, `uscale`, `vscale` into
+    /// `to_uv` = scale · translate.
+    fn upgrade_uv_transform(&mut self) {
+        let names = ["uoffset", "voffset", "uscale", "vscale"];
+        if !names.iter().any(|n| self.properties.contains_key(*n)) {
+            return;
+        }
+        let mut number = |name: &str, default: f64| {
+            let found = self.properties.remove(name);
+            let line = found.as_ref().map(|p| p.line);
+            let value = match found.map(|p| p.value) {
+                Some(Value::Float(x)) => x,
+                Some(Value::Int(n)) => n as f64,
+                _ => default,
+            };
+            (value, line)
+        };
+        let (uo, l1) = number("uoffset", 0.0);
+        let (vo, l2) = number("voffset", 0.0);
+        let (us, l3) = number("uscale", 1.0);
+        let (vs, l4) = number("vscale", 1.0);
+        let m = DMat4::from_scale(DVec3::new(us, vs, 1.0))
+            * DMat4::from_translation(DVec3::new(uo, vo, 0.0));
+        self.properties.insert(
+            "to_uv".into(),
+            Property {
+                value: Value::Transform(m),
+                line: [l1, l2, l3, l4]
+                    .into_iter()
+                    .flatten()
+                    .next()
+                    .unwrap_or(self.line),
+                read: false,
+            },
+        );
+    }
+
+    /// The name a nested object (`<texture name="...">`, a `<ref name>`) is given in its
+    /// element, upgraded as its properties' names are in files older than Mitsuba 2.
+    pub(super) fn name_of(&self, object: &Node) -> Option<String> {
+        let name = object.attribute("name")?;
+        Some(upgraded_name(
+            name,
+            &self.kind,
+            if self.legacy {
+                Version(0, 0, 0)
+            } else {
+                Version(3, 0, 0)
+            },
+        ))
+    }
+
     /// The value and line of property `name`, which counts as read.
     pub(super) fn take(&mut self, name: &str) -> Option<(Value, u32)> {
         let property = self.properties.get_mut(name)?;
@@ -271,6 +390,15 @@ impl Properties<'_, '_> {
         }
     }
 
+    /// A `boolean` and its line.
+    pub(super) fn boolean(&mut self, name: &str) -> Result<Option<(bool, u32)>, String> {
+        match self.take(name) {
+            Some((Value::Bool(b), l)) => Ok(Some((b, l))),
+            Some((_, l)) => Err(format!("line {l}: `{name}` must be a boolean")),
+            None => Ok(None),
+        }
+    }
+
     /// A `point`.
     pub(super) fn point(&mut self, name: &str) -> Result<Option<DVec3>, String> {
         match self.take(name) {
@@ -289,33 +417,97 @@ impl Properties<'_, '_> {
         }
     }
 
-    /// A colour (rgb, constant spectrum or float), its default, or `None` when a texture stands
-    /// in its place (reported with the element's objects).
+    /// Whether a nested object stands in the place of property `name` (a texture).
+    fn object_named(&self, name: &str) -> bool {
+        self.objects
+            .iter()
+            .any(|o| self.name_of(o).as_deref() == Some(name))
+    }
+
+    /// A reflectance-like colour (rgb, float, or spectrum as Mitsuba's RGB variants read it
+    /// off an emitter: a sampled spectrum integrated under D65 and kept in [0, 1]), its default,
+    /// or `None` when a texture stands in its place (reported with the element's objects).
     pub(super) fn color(&mut self, name: &str, default: f64) -> Result<Option<[f64; 3]>, String> {
+        self.color_as(name, default, false)
+    }
+
+    /// An emitted colour (radiance, intensity, irradiance) as Mitsuba's RGB variants read it:
+    /// rgb and float as they are, a uniform spectrum as the sRGB of that constant spectrum
+    /// (not grey: sRGB's white is D65), a sampled spectrum integrated without D65, negative
+    /// components clamped.
+    pub(super) fn emission(
+        &mut self,
+        name: &str,
+        default: f64,
+    ) -> Result<Option<[f64; 3]>, String> {
+        self.color_as(name, default, true)
+    }
+
+    fn color_as(
+        &mut self,
+        name: &str,
+        default: f64,
+        emitter: bool,
+    ) -> Result<Option<[f64; 3]>, String> {
         match self.take(name) {
             Some((Value::Color(c), _)) => Ok(Some(c)),
             Some((Value::Float(f), _)) => Ok(Some([f; 3])),
+            Some((Value::Int(n), _)) => Ok(Some([n as f64; 3])),
+            Some((Value::Spectrum(s), _)) => Ok(Some(spectrum::to_rgb(&s, emitter))),
+            Some((Value::Refused, _)) => Ok(None),
             Some((_, l)) => Err(format!("line {l}: `{name}` must be a colour")),
-            None if self
-                .objects
-                .iter()
-                .any(|o| o.attribute("name") == Some(name)) =>
-            {
-                Ok(None)
-            }
+            None if self.object_named(name) => Ok(None),
             None => Ok(Some([default; 3])),
         }
     }
 
-    /// Reports every property that was never read, as not converted by `owner`.
+    /// Reports every property that was never read, as not converted by `owner`; nothing if
+    /// the element was refused as a whole.
     pub(super) fn finish(self, owner: &str, report: &mut Report) {
+        if self.refused {
+            return;
+        }
         for (name, property) in self.properties {
-            if !property.read {
+            if !property.read && !matches!(property.value, Value::Refused) {
                 report.problem(
                     property.line,
                     format!("property `{name}` of {owner} is not converted"),
                 );
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Mitsuba 3's `camel_to_underscore_case` on the names 0.x scenes use.
+    #[test]
+    fn legacy_names_become_snake_case_as_mitsuba_makes_them() {
+        for (old, new) in [
+            ("toWorld", "to_world"),
+            ("intIOR", "int_ior"),
+            ("extIOR", "ext_ior"),
+            ("sampleCount", "sample_count"),
+            ("fovAxis", "fov_axis"),
+            ("specularReflectance", "specular_reflectance"),
+            ("maxDepth", "max_depth"),
+            ("alphaU", "alpha_u"),
+            ("already_snake", "already_snake"),
+            ("UPPER", "UPPER"),
+        ] {
+            assert_eq!(snake_case(old), new, "{old}");
+        }
+        let legacy = Version(0, 5, 0);
+        assert_eq!(
+            upgraded_name("diffuseReflectance", "diffuse", legacy),
+            "reflectance"
+        );
+        assert_eq!(
+            upgraded_name("diffuseReflectance", "plastic", legacy),
+            "diffuse_reflectance"
+        );
+        assert_eq!(upgraded_name("toWorld", "obj", Version(3, 0, 0)), "toWorld");
     }
 }

@@ -4,7 +4,7 @@ use super::Converter;
 use super::properties::{Value, line};
 use glam::{DMat4, DVec3};
 use lumis_core::scene::description::{
-    CameraDescription, CropDescription, FilmDescription, SamplerDescription,
+    CameraDescription, CropDescription, FilmDescription, FilterDescription, SamplerDescription,
 };
 use roxmltree::Node;
 
@@ -13,15 +13,30 @@ pub(super) const DEFAULT_WIDTH: u32 = 768;
 pub(super) const DEFAULT_HEIGHT: u32 = 576;
 pub(super) const DEFAULT_SPP: u32 = 4;
 
+/// Mitsuba's filter when a film names none: its Gaussian, σ = 0.5 pixel.
+pub(super) fn default_filter() -> FilterDescription {
+    FilterDescription {
+        kind: "gaussian".into(),
+        radius: None,
+        stddev: Some(0.5),
+    }
+}
+
+/// The 35 mm film's diagonal, in mm, with which Mitsuba turns a focal length into a diagonal
+/// field of view.
+const FILM_35MM_DIAGONAL: f64 = 43.266_615_305_567_87;
+
 impl Converter {
-    /// A `perspective` sensor: the camera (and the film, and the sampler).
+    /// A `perspective` sensor: the camera (and the film, and the sampler). A sensor that cannot
+    /// be converted leaves the scene without a camera, which no `--partial` writes.
     pub(super) fn sensor(&mut self, node: &Node) -> Result<(), String> {
         let mut p = self.properties(node)?;
         let at = p.line;
         if p.kind != "perspective" {
-            self.problem(
-                at,
-                format!("sensor `{}` is not converted (perspective only)", p.kind),
+            let kind = p.kind.clone();
+            self.refuse(
+                &mut p,
+                format!("sensor `{kind}` is not converted (perspective only)"),
             );
             return Ok(());
         }
@@ -31,6 +46,7 @@ impl Converter {
             output: None,
             crop: None,
             exposure: 0.0,
+            filter: default_filter(),
         };
         let mut film_seen = false;
         for object in p.objects.clone() {
@@ -47,7 +63,10 @@ impl Converter {
             }
         }
         if !film_seen {
-            self.note(at, "no <film>: Mitsuba's default 768x576 hdrfilm");
+            self.note(
+                at,
+                "no <film>: Mitsuba's default 768x576 hdrfilm, with its Gaussian filter",
+            );
         }
         let matrix = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         let position = matrix.transform_point3(DVec3::ZERO);
@@ -55,25 +74,90 @@ impl Converter {
         let up = matrix.transform_vector3(DVec3::Y);
         let (f, u) = (forward.normalize_or_zero(), up.normalize_or_zero());
         if matrix.determinant() <= 0.0 || f.dot(u).abs() > 1e-4 || f == DVec3::ZERO {
-            self.problem(
-                at,
+            self.refuse(
+                &mut p,
                 "the sensor's `to_world` mirrors or skews the view, which lumis' camera cannot",
             );
             return Ok(());
         }
-        let axis = p.string("fov_axis")?.map_or("x".to_string(), |(s, _)| s);
-        let Some((fov, _)) = p.number("fov")? else {
-            self.problem(
-                at,
-                "a sensor without `fov` (a focal length) is not converted",
-            );
-            return Ok(());
+        let focal_length = p.take("focal_length");
+        let (fov, axis) = match (p.number("fov")?, focal_length) {
+            (Some(_), Some((_, l))) => {
+                return Err(format!(
+                    "line {l}: a sensor takes `fov` or `focal_length`, not both (as in Mitsuba)"
+                ));
+            }
+            (Some((fov, _)), None) => {
+                let axis = p
+                    .string("fov_axis")?
+                    .map_or("x".to_string(), |(s, _)| s.to_ascii_lowercase());
+                (fov, axis)
+            }
+            (None, focal) => {
+                let given = focal.is_some();
+                let (text, l) = match focal {
+                    Some((Value::Str(s), l)) => (s, l),
+                    Some((Value::Float(x), l)) => (x.to_string(), l),
+                    Some((Value::Int(n), l)) => (n.to_string(), l),
+                    Some((_, l)) => {
+                        return Err(format!("line {l}: `focal_length` must be a string"));
+                    }
+                    None => ("50mm".to_string(), at),
+                };
+                let mm = text
+                    .trim()
+                    .strip_suffix("mm")
+                    .unwrap_or(text.trim())
+                    .trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| *x > 0.0 && x.is_finite())
+                    .ok_or_else(|| {
+                        format!("line {l}: focal length `{text}` is not a positive number of mm")
+                    })?;
+                let diagonal = 2.0 * (FILM_35MM_DIAGONAL / (2.0 * mm)).atan().to_degrees();
+                if !given {
+                    self.note(
+                        at,
+                        "no `fov`: Mitsuba's default focal length, 50 mm (35 mm film), a \
+                         diagonal field of view of 46.8°",
+                    );
+                }
+                (diagonal, "diagonal".to_string())
+            }
         };
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(format!(
+                "line {at}: the field of view must be in (0, 180) degrees, found {fov}"
+            ));
+        }
         let vertical = vertical_fov(fov, &axis, film.width, film.height)
             .ok_or_else(|| format!("line {at}: unknown fov_axis `{axis}`"))?;
         for clip in ["near_clip", "far_clip"] {
             if let Some((_, l)) = p.take(clip) {
                 self.note(l, format!("`{clip}` is ignored: lumis does not clip"));
+            }
+        }
+        if let Some((_, l)) = p.take("focus_distance") {
+            self.note(
+                l,
+                "`focus_distance` is ignored: a `perspective` sensor is a pinhole, sharp at \
+                 every distance (as in Mitsuba)",
+            );
+        }
+        for shutter in ["shutter_open", "shutter_close"] {
+            if let Some((_, l)) = p.take(shutter) {
+                self.note(
+                    l,
+                    format!("`{shutter}` is ignored: nothing in the scene moves"),
+                );
+            }
+        }
+        for offset in ["principal_point_offset_x", "principal_point_offset_y"] {
+            if let Some((x, l)) = p.number(offset)?
+                && x != 0.0
+            {
+                self.problem(l, format!("`{offset}` other than 0 is not converted"));
             }
         }
         let f32s = |v: DVec3| v.as_vec3().to_array();
@@ -90,15 +174,32 @@ impl Converter {
         Ok(())
     }
 
-    /// An `hdrfilm`: size and crop window.
+    /// An `hdrfilm` (or a Mitsuba 0.x `ldrfilm`): size, crop window and filter.
     fn film(&mut self, node: &Node) -> Result<FilmDescription, String> {
         let mut p = self.properties(node)?;
         let at = p.line;
-        if p.kind != "hdrfilm" {
-            self.problem(
-                at,
-                format!("film `{}` is not converted (hdrfilm only)", p.kind),
-            );
+        let mut exposure = 0.0;
+        match p.kind.as_str() {
+            "hdrfilm" => {}
+            "ldrfilm" if self.version().is_legacy() => {
+                self.note(
+                    at,
+                    "Mitsuba 0.x `ldrfilm`: lumis renders the same radiance to an OpenEXR \
+                     image and a PNG preview; the tone mapping is not applied",
+                );
+                if let Some((stops, _)) = p.number("exposure")? {
+                    exposure = stops as f32;
+                }
+                for ignored in ["tonemap_method", "gamma", "key", "burn"] {
+                    p.ignore(ignored);
+                }
+            }
+            other => {
+                self.problem(
+                    at,
+                    format!("film `{other}` is not converted (hdrfilm only; its size is kept)"),
+                );
+            }
         }
         let mut int = |name: &str, default: i64| -> Result<Option<i64>, String> {
             match p.take(name) {
@@ -128,39 +229,43 @@ impl Converter {
             _ => None,
         };
         // Output formats do not change the image.
-        for ignored in ["pixel_format", "component_format", "file_format", "banner"] {
+        for ignored in [
+            "pixel_format",
+            "component_format",
+            "file_format",
+            "banner",
+            "high_quality_edges",
+            "attach_log",
+        ] {
             p.ignore(ignored);
         }
-        let mut box_filter = false;
+        let mut filter = None;
         for object in p.objects.clone() {
             match object.tag_name().name() {
-                "rfilter" => {
-                    let kind = self.xml.attribute(&object, "type")?.unwrap_or_default();
-                    if kind != "box" {
-                        self.problem(
-                            line(&object),
-                            format!("reconstruction filter `{kind}` is not converted (box only)"),
-                        );
-                    }
-                    box_filter = true;
-                }
+                "rfilter" => filter = Some(self.rfilter(&object)?),
                 other => self.problem(
                     line(&object),
                     format!("<{other}> inside the film is not converted"),
                 ),
             }
         }
-        if !box_filter {
-            self.note(
-                at,
-                "no <rfilter>: Mitsuba filters with a Gaussian by default, lumis with a box over \
-                 the pixel (the same mean image, blurred differently)",
-            );
-        }
-        if let Some((_, l)) = p.take("sample_border") {
+        let filter = match filter {
+            Some(f) => f.unwrap_or_else(default_filter),
+            None => {
+                self.note(
+                    at,
+                    "no <rfilter>: Mitsuba's default, a Gaussian of σ = 0.5 pixel (lumis \
+                     samples it)",
+                );
+                default_filter()
+            }
+        };
+        if let Some((true, l)) = p.boolean("sample_border")? {
             self.note(
                 l,
-                "`sample_border` is ignored (lumis' box filter stays in its pixel)",
+                "`sample_border` is ignored: lumis cuts the filter at the film's edge and \
+                 renormalises it, as Mitsuba does without `sample_border` (pixels at the edge \
+                 differ)",
             );
         }
         self.finish(p, "the film");
@@ -169,19 +274,70 @@ impl Converter {
             height,
             output: None,
             crop,
-            exposure: 0.0,
+            exposure,
+            filter,
         })
     }
 
-    /// An `independent` sampler: samples per pixel and seed.
+    /// An `<rfilter>`: `box`, `tent` (`radius`) or `gaussian` (`stddev`), as lumis' filter of
+    /// the same name; `None` after a problem.
+    fn rfilter(&mut self, node: &Node) -> Result<Option<FilterDescription>, String> {
+        let mut p = self.properties(node)?;
+        let mut filter = FilterDescription {
+            kind: p.kind.clone(),
+            radius: None,
+            stddev: None,
+        };
+        match p.kind.as_str() {
+            "box" => {}
+            "tent" => filter.radius = p.number("radius")?.map(|(r, _)| r as f32),
+            "gaussian" => filter.stddev = p.number("stddev")?.map(|(s, _)| s as f32),
+            other => {
+                let other = other.to_string();
+                self.refuse(
+                    &mut p,
+                    format!(
+                        "reconstruction filter `{other}` is not converted (box, tent and \
+                         gaussian are; --partial uses Mitsuba's default Gaussian)"
+                    ),
+                );
+                return Ok(None);
+            }
+        }
+        if let Err(e) = filter.build() {
+            let e = e.clone();
+            self.refuse(&mut p, e);
+            return Ok(None);
+        }
+        self.finish(p, "the reconstruction filter");
+        Ok(Some(filter))
+    }
+
+    /// The sampler: `independent` (sample count and seed); Mitsuba's other samplers draw the
+    /// same expected image with other patterns, and become lumis' independent samples (noted).
     fn sampler(&mut self, node: &Node) -> Result<(), String> {
         let mut p = self.properties(node)?;
-        if p.kind != "independent" {
-            self.problem(
-                p.line,
-                format!("sampler `{}` is not converted (independent only)", p.kind),
-            );
-            return Ok(());
+        match p.kind.as_str() {
+            "independent" => {}
+            "stratified" | "multijitter" | "orthogonal" | "ldsampler" | "halton" | "hammersley"
+            | "sobol" => {
+                self.note(
+                    p.line,
+                    format!(
+                        "sampler `{}` becomes lumis' independent samples: the same expected \
+                         image, with other noise",
+                        p.kind
+                    ),
+                );
+                for ignored in ["jitter", "scramble", "dimension", "randomize"] {
+                    p.ignore(ignored);
+                }
+            }
+            other => {
+                let other = other.to_string();
+                self.refuse(&mut p, format!("sampler `{other}` is not converted"));
+                return Ok(());
+            }
         }
         let spp = match p.take("sample_count") {
             Some((Value::Int(n), l)) if n > 0 => u32::try_from(n).map_err(|_| {

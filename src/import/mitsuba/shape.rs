@@ -1,5 +1,5 @@
-//! `<shape>`: `obj`, `ply`, `rectangle`, `cube`, `disk` and `sphere`, with their BSDF (nested
-//! or referenced) and area emitter.
+//! `<shape>`: `obj`, `ply`, `serialized`, `rectangle`, `cube`, `disk` and `sphere`, with their
+//! BSDF (nested or referenced) and area emitter (nested or referenced).
 
 use super::properties::{Properties, Value, line};
 use super::{Converter, bsdf, transform};
@@ -30,11 +30,9 @@ impl Converter {
         if let Some(m) = matrix {
             shape.transform = transform::description(m);
         }
-        if !self.shape_objects(&p.objects, &mut shape)? {
-            return Ok(());
-        }
+        self.shape_objects(&p, &mut shape)?;
         if shape.bsdf.is_none() {
-            shape.bsdf = Some(self.default_bsdf(p.line));
+            shape.bsdf = Some(self.default_bsdf(p.line, None));
         }
         self.shapes.push(shape);
         let owner = format!("the `{}` shape", p.kind);
@@ -53,24 +51,46 @@ impl Converter {
             mesh: None,
             face_normals: None,
             flip_normals: None,
+            smooth_normals: None,
+            shape_index: None,
             lights: None,
             center: None,
             radius: None,
             segments: None,
         };
         match p.kind.as_str() {
-            "obj" | "ply" => {
-                let Some((Value::Str(file), _)) = p.take("filename") else {
+            "obj" | "ply" | "serialized" => {
+                let Some((Value::Str(file), l)) = p.take("filename") else {
                     return Err(format!(
                         "line {}: a {} shape needs `filename`",
                         p.line, p.kind
                     ));
                 };
-                shape.file = Some(self.path(&file));
-                if let Some((Value::Bool(b), _)) = p.take("face_normals") {
-                    shape.face_normals = Some(b);
+                let Some(found) = self.asset(&file, l, "mesh file") else {
+                    p.refused = true;
+                    return Ok(None);
+                };
+                shape.file = Some(found);
+                match p.take("face_normals") {
+                    Some((Value::Bool(true), _)) => shape.face_normals = Some(true),
+                    // Mitsuba computes smooth normals for a mesh that has none.
+                    _ => shape.smooth_normals = Some(true),
                 }
-                // Texture coordinates are not used.
+                if p.kind == "serialized" {
+                    match p.take("shape_index") {
+                        Some((Value::Int(0), _)) => {}
+                        Some((Value::Int(n), l)) => {
+                            shape.shape_index = Some(u32::try_from(n).map_err(|_| {
+                                format!("line {l}: `shape_index` must be a non-negative integer")
+                            })?)
+                        }
+                        Some((_, l)) => {
+                            return Err(format!("line {l}: `shape_index` must be an integer"));
+                        }
+                        None => {}
+                    }
+                }
+                // Texture coordinates: the loaders turn OBJ's as Mitsuba does by default.
                 p.ignore("flip_tex_coords");
             }
             "rectangle" | "cube" => {}
@@ -86,51 +106,63 @@ impl Converter {
                 shape.radius = p.number("radius")?.map(|(r, _)| r as f32);
             }
             other => {
-                self.problem(p.line, format!("shape `{other}` is not converted"));
+                let other = other.to_string();
+                self.refuse(
+                    p,
+                    format!(
+                        "shape `{other}` is not converted (obj, ply, serialized, rectangle, \
+                         cube, disk and sphere are): its geometry is left out"
+                    ),
+                );
                 return Ok(None);
             }
         }
         Ok(Some(shape))
     }
 
-    /// Gives `shape` its BSDF (by name) and area emitter from its nested `objects`; false after
-    /// a problem.
+    /// Gives `shape` its BSDF (by name) and area emitter from the element's nested objects. A
+    /// BSDF that cannot be converted becomes Mitsuba's default (noted), so that the geometry
+    /// stays; an emitter that cannot be converted leaves the shape without one.
     fn shape_objects(
         &mut self,
-        objects: &[Node],
+        p: &Properties,
         shape: &mut ShapeDescription,
-    ) -> Result<bool, String> {
-        for object in objects {
+    ) -> Result<(), String> {
+        for object in p.objects.clone() {
+            let at = line(&object);
             match object.tag_name().name() {
                 "ref" => {
-                    let id = self.xml.required(object, "id")?;
-                    if !self.bsdfs.contains_key(&id) {
+                    let id = self.xml.required(&object, "id")?;
+                    if self.bsdfs.contains_key(&id) {
+                        shape.bsdf = Some(id);
+                    } else if let Some(&(file, l)) = self.refused_bsdfs.get(&id) {
+                        let place = format!("{}:{l}", self.files[file].0.display());
+                        shape.bsdf = Some(self.default_bsdf(at, Some(&place)));
+                    } else if let Some(emitter) = self.area_emitters.get(&id) {
+                        shape.emitter = Some(emitter.clone());
+                    } else {
+                        let what = self.what_is(&id);
                         self.problem(
-                            line(object),
-                            format!("reference to `{id}`, which is not a converted BSDF"),
+                            at,
+                            format!(
+                                "reference to `{id}`, which names {what}: not a BSDF or area \
+                                 emitter this shape can take"
+                            ),
                         );
-                        return Ok(false);
                     }
-                    shape.bsdf = Some(id);
                 }
-                "bsdf" => match self.nested_bsdf(object)? {
+                "bsdf" => match self.nested_bsdf(&object)? {
                     Some(name) => shape.bsdf = Some(name),
-                    None => return Ok(false),
+                    None => {
+                        let place = format!("line {at}");
+                        shape.bsdf = Some(self.default_bsdf(at, Some(&place)));
+                    }
                 },
-                "emitter" => match self.area_emitter(object)? {
-                    Some(area) => shape.emitter = Some(area),
-                    None => return Ok(false),
-                },
-                other => {
-                    self.problem(
-                        line(object),
-                        format!("<{other}> inside a shape is not converted"),
-                    );
-                    return Ok(false);
-                }
+                "emitter" => shape.emitter = self.area_emitter(&object)?,
+                other => self.problem(at, format!("<{other}> inside a shape is not converted")),
             }
         }
-        Ok(true)
+        Ok(())
     }
 
     /// A BSDF nested in a shape, added to the scene's BSDFs under its `id` or a new name; the
@@ -148,12 +180,23 @@ impl Converter {
         Ok(Some(name))
     }
 
-    /// Mitsuba's default BSDF, added to the scene's BSDFs: its name.
-    fn default_bsdf(&mut self, at: u32) -> String {
-        self.note(
-            at,
-            "a shape without BSDF gets Mitsuba's default, diffuse 0.5",
-        );
+    /// Mitsuba's default BSDF, added to the scene's BSDFs: its name. `refused`: where the
+    /// shape's own BSDF was that could not be converted (with --partial the shape keeps its
+    /// geometry with this one).
+    fn default_bsdf(&mut self, at: u32, refused: Option<&str>) -> String {
+        match refused {
+            None => self.note(
+                at,
+                "a shape without BSDF gets Mitsuba's default, diffuse 0.5",
+            ),
+            Some(place) => self.note(
+                at,
+                format!(
+                    "the shape's BSDF ({place}) is not converted: with --partial the shape \
+                     keeps its geometry with Mitsuba's default BSDF, diffuse 0.5"
+                ),
+            ),
+        }
         self.bsdfs
             .entry(DEFAULT_BSDF.into())
             .or_insert_with(bsdf::default_bsdf);

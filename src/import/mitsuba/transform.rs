@@ -2,13 +2,20 @@
 //! matrix, and that matrix as the scene's `transform: (matrix: ...)`.
 
 use super::Report;
+use super::files::Version;
 use super::properties::{Xml, line};
 use glam::{DMat4, DVec3, DVec4};
 use lumis_core::scene::description::TransformDescription;
 use roxmltree::Node;
 
 /// A `<transform>`'s matrix (its operations applied in order), or `None` after a problem.
-pub(super) fn read(node: &Node, xml: &Xml, report: &mut Report) -> Result<Option<DMat4>, String> {
+/// Files older than Mitsuba 2 may write `<lookAt>` for `<lookat>` (noted).
+pub(super) fn read(
+    node: &Node,
+    xml: &Xml,
+    report: &mut Report,
+    version: Version,
+) -> Result<Option<DMat4>, String> {
     let mut m = DMat4::IDENTITY;
     for op in node.children().filter(Node::is_element) {
         let at = line(&op);
@@ -25,6 +32,16 @@ pub(super) fn read(node: &Node, xml: &Xml, report: &mut Report) -> Result<Option
                 rotation(axis.normalize(), angle)
             }
             "matrix" => matrix(&op, xml)?,
+            "lookAt" if version.is_legacy() => {
+                report.note(
+                    at,
+                    "<lookAt> (Mitsuba 0.x) read as <lookat> (Mitsuba 3 itself refuses it)",
+                );
+                match look_at(&op, xml, report)? {
+                    Some(m) => m,
+                    None => return Ok(None),
+                }
+            }
             "lookat" => match look_at(&op, xml, report)? {
                 Some(m) => m,
                 None => return Ok(None),

@@ -1,0 +1,249 @@
+#!/usr/bin/env python3
+"""`lumis import` on public Mitsuba scenes: each scene of Mitsuba's own data repository
+(mitsuba-renderer/mitsuba-data: its documentation scenes and its test scenes, written by the
+Mitsuba authors) is converted by `lumis import`, rendered by lumis and by Mitsuba 3.9.1
+(scalar_rgb) over independent seeds at a small size, and the mean images compared with the
+race's block test (race.py `compare`, as import_check.py does).
+
+The scenes stay outside the source tree: `--data` is a checkout of mitsuba-data (cloned with
+`git clone --depth 1` into the work folder when absent); the scene folders are copied into the
+work folder (default target/mitsuba-corpus) and their film sizes divided there, never in the
+checkout. mitsuba-data has no licence file of its own; its scenes are used here to render, not
+redistributed.
+
+Two comparisons per scene: against Mitsuba rendering the scene as written, and against Mitsuba
+with its `direct` integrator (what lumis renders for a `path` integrator until lumis has a path
+tracer): the first says whether lumis reproduces the scene, the second whether the conversion
+is right for what lumis renders. A scene that does not convert without refusals is still
+rendered from its `--partial` conversion and reported as such.
+
+Run through corpus.sh, which sets up the virtual environment and builds lumis.
+"""
+
+import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from race import REPO, compare, read_exr
+
+# (name, scene file in mitsuba-data, -D defines for both renderers, what it exercises)
+SCENES = [
+    ("cbox", "scenes/cbox/cbox.xml", {"res": "64"},
+     "Cornell box: <include>-free 3.0 file, sampled spectra, Gaussian filter, OBJ meshes"),
+    ("cbox-rgb", "docs/scenes/variants_cbox_rgb.xml", {},
+     "Cornell box with <path>, sampled spectra, box filter"),
+    ("matpreview", "scenes/matpreview/matpreview.xml", {"width": "96", "height": "72"},
+     ".serialized meshes (format 3), env map under a general matrix, plastic, checkerboard"),
+    ("hello", "scenes/hello.xml", {},
+     "PLY teapot without normals (smooth normals), no fov (50 mm focal length), direct"),
+    ("veach-mis-direct", "docs/scenes/integrator_direct_both.xml", {},
+     "Veach's MIS scene through <include> and <path>, direct integrator"),
+    ("veach-mis-lum", "docs/scenes/integrator_direct_lum.xml", {},
+     "Veach's MIS scene, emitter sampling only"),
+    ("spot", "docs/scenes/emitter_spot_no_texture.xml", {},
+     "two spot lights and a constant environment, includes, .serialized (format 4)"),
+    ("bunny", "docs/scenes/shape_ply_bunny.xml", {},
+     "PLY bunny (smooth normals), twosided diffuse, includes"),
+    ("bunny-facet", "docs/scenes/shape_ply_bunny_facet.xml", {},
+     "PLY bunny with face_normals"),
+    ("sensor-perspective", "docs/scenes/sensor_perspective.xml", {},
+     "perspective sensor with focus_distance, Gaussian filter"),
+    ("diffuse-plain", "docs/scenes/bsdf_diffuse_plain.xml", {},
+     "material preview: .serialized, rotated env map, checkerboard plane"),
+    ("sphere", "docs/scenes/shape_sphere_basic.xml", {}, "sphere shape"),
+    ("rectangle", "docs/scenes/shape_rectangle.xml", {}, "rectangle shape"),
+    ("disk", "docs/scenes/shape_disk.xml", {}, "disk shape"),
+    ("conductor-gold", "docs/scenes/bsdf_conductor_gold.xml", {}, "named conductor (Au)"),
+    ("roughconductor-copper", "docs/scenes/bsdf_roughconductor_copper.xml", {},
+     "rough named conductor (Cu)"),
+]
+
+# The folders of mitsuba-data the scenes and their assets are in.
+FOLDERS = ["scenes", "docs/scenes", "common"]
+
+
+def shrink(folder, factor):
+    """Divides every literal film width and height of the XML files under `folder`."""
+    pattern = re.compile(r'(<integer\s+name="(?:width|height)"\s+value=")(\d+)(")')
+    for xml in folder.rglob("*.xml"):
+        text = xml.read_text()
+        new = pattern.sub(lambda m: f"{m[1]}{max(8, int(m[2]) // factor)}{m[3]}", text)
+        if new != text:
+            xml.write_text(new)
+
+
+def plain(folder):
+    """Rewrites every XML file under `folder` to what lumis converts in full, keeping geometry,
+    lights, camera and filter: every BSDF becomes Mitsuba's default (`diffuse`, 0.5, one-sided
+    as Mitsuba's are; lumis' reflect on both sides, which these scenes do not see), textures
+    are dropped, and `path` integrators become `direct` (emitter and BSDF sample each)."""
+    import xml.etree.ElementTree as ET
+    for xml in folder.rglob("*.xml"):
+        try:
+            tree = ET.parse(xml)
+        except ET.ParseError:
+            continue
+        root = tree.getroot()
+
+        def visit(node):
+            for child in list(node):
+                if child.tag == "bsdf":
+                    keep = {k: v for k, v in child.attrib.items() if k in ("id", "name")}
+                    child.clear()
+                    child.attrib.update(keep, type="diffuse")
+                elif child.tag == "texture" and node is root:
+                    node.remove(child)
+                elif child.tag == "integrator" and child.get("type") in ("path", "moment"):
+                    child.clear()
+                    child.attrib["type"] = "direct"
+                else:
+                    visit(child)
+        visit(root)
+        tree.write(xml)
+
+
+def lumis_runs(binary, ron, runs, spp, exr):
+    images = []
+    for s in range(runs):
+        result = subprocess.run([str(binary), "render", str(ron), "--seed", str(s), "--spp",
+                                 str(spp), "--quiet", "-o", str(exr)],
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise RuntimeError(result.stderr.strip())
+        images.append(read_exr(exr))
+    return images
+
+
+def mitsuba_runs(xml, defines, runs, spp, integrator):
+    import mitsuba as mi
+    scene = mi.load_file(str(xml), **defines)
+    kwargs = {} if integrator is None else {"integrator": mi.load_dict({"type": integrator})}
+    return [np.array(mi.render(scene, seed=1000 + s, spp=spp, **kwargs)) for s in range(runs)]
+
+
+def verdict(c):
+    return (f"{'AGREE' if c['ok'] else 'DISAGREE'} (max |z| {c['max_z']:.2f} of "
+            f"{c['z_crit']:.2f} over {c['blocks']} blocks, image-mean |z| "
+            f"{max(c['global_z']):.2f}, rel. L1 {c['rel_l1']:.2%})")
+
+
+def to_png(rgb, path):
+    """A linear image as an sRGB PNG (clamped), for the gallery."""
+    import mitsuba as mi
+    bitmap = mi.Bitmap(np.ascontiguousarray(rgb.astype(np.float32)))
+    bitmap.convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True).write(
+        str(path))
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--lumis", type=Path, default=REPO / "target" / "release" / "lumis")
+    p.add_argument("--work", type=Path, default=REPO / "target" / "mitsuba-corpus")
+    p.add_argument("--data", type=Path, help="a checkout of mitsuba-data "
+                   "(default: WORK/mitsuba-data, cloned when absent)")
+    p.add_argument("--runs", type=int, default=4, help="seeds per renderer")
+    p.add_argument("--spp", type=int, default=16, help="samples per pixel of each run")
+    p.add_argument("--shrink", type=int, default=6, help="divides literal film sizes")
+    p.add_argument("--block", type=int, default=8, help="block edge (pixels) of the test")
+    p.add_argument("--only", nargs="*", help="scene names to run (default: all)")
+    p.add_argument("--png", type=Path, help="write lumis' and Mitsuba's mean images here")
+    p.add_argument("--plain", action="store_true",
+                   help="compare the scenes with every BSDF made diffuse and `path` made "
+                        "`direct` (what lumis converts in full), not as written")
+    args = p.parse_args()
+    work = args.work.resolve()
+    work.mkdir(parents=True, exist_ok=True)
+    data = args.data or work / "mitsuba-data"
+    if not data.exists():
+        subprocess.run(["git", "clone", "--depth", "1",
+                        "https://github.com/mitsuba-renderer/mitsuba-data", str(data)],
+                       check=True)
+    tree = work / "tree"
+    if tree.exists():
+        shutil.rmtree(tree)
+    for folder in FOLDERS:
+        shutil.copytree(data / folder, tree / folder)
+    shrink(tree, args.shrink)
+    if args.plain:
+        plain(tree)
+
+    import mitsuba as mi
+    mi.set_variant("scalar_rgb")
+    results = []
+    for name, scene, defines, what in SCENES:
+        if args.only and name not in args.only:
+            continue
+        xml = tree / scene
+        out = work / name
+        out.mkdir(exist_ok=True)
+        ron = out / "scene.ron"
+        d = [x for k, v in defines.items() for x in ("-D", f"{k}={v}")]
+        strict = subprocess.run([str(args.lumis), "import", str(xml), "-o", str(ron), *d],
+                                capture_output=True, text=True)
+        partial = strict
+        if strict.returncode != 0:
+            partial = subprocess.run([str(args.lumis), "import", str(xml), "-o", str(ron), *d,
+                                      "--partial"], capture_output=True, text=True)
+        lines = partial.stderr.strip().splitlines()
+        problems = [l for l in lines if l.startswith(("skipped:", "error:"))]
+        notes = [l for l in lines if l.startswith("note:")]
+        r = {"name": name, "scene": scene, "what": what, "imports": strict.returncode == 0,
+             "converts": ron.exists() and partial.returncode == 0,
+             "problems": problems, "notes": notes}
+        print(f"== {name} ({scene}): {what}")
+        print(f"   import: {'no refusal' if r['imports'] else f'{len(problems)} refusal(s)'}"
+              f", {len(notes)} note(s)")
+        for line in problems:
+            print(f"     {line}")
+        if r["converts"]:
+            exr = out / "lumis.exr"
+            try:
+                lumis = lumis_runs(args.lumis, ron, args.runs, args.spp, exr)
+            except RuntimeError as e:
+                r["render_error"] = str(e)
+                print(f"   lumis render failed: {e}")
+                results.append(r)
+                continue
+            mi_defines = {k: v for k, v in defines.items()}
+            for label, integrator in [("as written", None), ("direct", "direct")]:
+                try:
+                    mitsuba = mitsuba_runs(xml, mi_defines, args.runs, args.spp, integrator)
+                except Exception as e:  # Mitsuba refuses the scene: reported, not fatal.
+                    r[label] = f"Mitsuba failed: {e}"
+                    print(f"   vs Mitsuba {label}: Mitsuba failed: {e}")
+                    continue
+                if mitsuba[0].shape != lumis[0].shape:
+                    r[label] = f"sizes differ: {mitsuba[0].shape} vs {lumis[0].shape}"
+                    print(f"   vs Mitsuba {label}: {r[label]}")
+                    continue
+                c = compare(lumis, mitsuba, args.block)
+                r[label] = {"ok": c["ok"], "max_z": c["max_z"], "z_crit": c["z_crit"],
+                            "global_z": c["global_z"], "rel_l1": c["rel_l1"]}
+                print(f"   vs Mitsuba {label}: {verdict(c)}")
+                if args.png and label == "as written":
+                    args.png.mkdir(parents=True, exist_ok=True)
+                    to_png(np.mean(lumis, 0), args.png / f"{name}-lumis.png")
+                    to_png(np.mean(mitsuba, 0), args.png / f"{name}-mitsuba.png")
+        results.append(r)
+    (work / "results.json").write_text(json.dumps(results, indent=1))
+    n = len(results)
+    imported = sum(r["imports"] for r in results)
+    converted = sum(r["converts"] for r in results)
+    agree = {label: sum(isinstance(r.get(label), dict) and r[label]["ok"] for r in results)
+             for label in ["as written", "direct"]}
+    compared = {label: sum(isinstance(r.get(label), dict) for r in results)
+                for label in ["as written", "direct"]}
+    print(f"\n{n} scenes: {imported} import without refusal, {converted} convert with "
+          f"--partial; agree with Mitsuba as written in {agree['as written']} of "
+          f"{compared['as written']} compared, with Mitsuba `direct` in {agree['direct']} of "
+          f"{compared['direct']}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
