@@ -16,6 +16,7 @@ mod import;
 mod import_hostile;
 mod integrators;
 mod one_point;
+mod passes;
 mod render;
 mod robustness;
 mod study;
