@@ -3,6 +3,8 @@
 //! ```text
 //! cargo bench --bench passes -- coverage [--renders R] [--size WxH] [--samples N]
 //!     [--target E] [--metric relmse|mse] [--confidence C] [--reference-spp S] SCENE...
+//! cargo bench --bench passes -- bias [--renders R] [--size WxH] [--samples N] [--target E]
+//!     [--spp S] SCENE...
 //! cargo bench --bench passes -- cost [--runs K] [--size WxH] [--samples N] [--spp S]
 //!     [--passes P] SCENE...
 //! ```
@@ -14,6 +16,13 @@
 //! the fraction with e < E (*honest stopping*: at least the confidence) and the fraction whose
 //! stated interval holds e (*coverage*: the nominal two-sided confidence), each with its 95 %
 //! Wilson interval, the samples and passes used and why the renders stopped.
+//!
+//! `bias`: per scene, R renders to the target error (planned weights), R renders of the same
+//! target by the biased rule (equal weights, stopped after the first pass whose own estimate is
+//! below the target: `Control::Stop`) and R plain one-pass renders of `--spp` samples, seeds
+//! disjoint. Each render gives one number, its image's mean luminance; the relative difference
+//! of each rule's mean from the plain renders', its standard error (Welch), its z, and the
+//! relative bias the comparison detects with probability 0.9 at the suite's false-alarm rate.
 //!
 //! `cost`: a render of S samples per pixel in P uniform passes (with everything a target render
 //! does between passes: the error estimate, a preview resolved and encoded as PNG) against the
@@ -96,8 +105,10 @@ fn options() -> Result<Options, String> {
             scene => o.scenes.push(from_repository(scene)),
         }
     }
-    if !["coverage", "cost", "calibration"].contains(&o.mode.as_str()) || o.scenes.is_empty() {
-        return Err("usage: passes coverage|calibration|cost [options] SCENE...".into());
+    if !["coverage", "cost", "calibration", "bias"].contains(&o.mode.as_str())
+        || o.scenes.is_empty()
+    {
+        return Err("usage: passes coverage|calibration|bias|cost [options] SCENE...".into());
     }
     Ok(o)
 }
@@ -232,6 +243,8 @@ fn coverage(o: &Options, scene: &Path) {
     let mut loaded = load(o, scene, &[]);
     let (mut below, mut covered, mut above_high, mut spp, mut passes) = (0, 0, 0, Vec::new(), 0);
     let (mut ratio, mut stops) = (0.0, std::collections::BTreeMap::new());
+    // N Q / M²: the image's variance relative to equal weights over the same samples.
+    let mut weights_cost = Vec::new();
     for seed in 0..o.renders {
         loaded.scene.seed = seed as u64;
         loaded.integrator.preprocess(&loaded.scene);
@@ -257,6 +270,8 @@ fn coverage(o: &Options, scene: &Path) {
         above_high += usize::from(e > stated.high);
         ratio += stated.value / e;
         spp.push(state.history.samples());
+        let (given, squares) = state.history.given();
+        weights_cost.push(f64::from(state.history.samples()) * squares / (given * given));
         passes += state.history.passes.len();
         *stops
             .entry(state.history.stopped.map_or("none", |s| s.name()))
@@ -266,8 +281,10 @@ fn coverage(o: &Options, scene: &Path) {
     let (b_lo, b_hi) = wilson(below, n);
     let (c_lo, c_hi) = wilson(covered, n);
     spp.sort_unstable();
+    let cost_mean = weights_cost.iter().sum::<f64>() / n as f64;
+    let cost_max = weights_cost.iter().copied().fold(0.0, f64::max);
     println!(
-        "| {} | {} | {} | {:.3} [{:.3}, {:.3}] | {:.3} [{:.3}, {:.3}] | {:.3} | {:.3} | {} [{}, {}] | {:.1} | {:?} |",
+        "| {} | {} | {} | {:.3} [{:.3}, {:.3}] | {:.3} [{:.3}, {:.3}] | {:.3} | {:.3} | {} [{}, {}] | {:.1} | {:.3} (max {:.3}) | {:?} |",
         scene.file_stem().unwrap().to_string_lossy(),
         o.target,
         n,
@@ -283,6 +300,8 @@ fn coverage(o: &Options, scene: &Path) {
         spp[0],
         spp[n - 1],
         passes as f64 / n as f64,
+        cost_mean,
+        cost_max,
         stops
     );
 }
@@ -343,6 +362,101 @@ fn calibration(o: &Options, scene: &Path) {
             stated / truth,
             raw_covered as f64 / r,
             covered as f64 / r
+        );
+    }
+}
+
+/// The image's mean luminance after a render of `settings` from seed `seed`; `stop_below`: stop
+/// after the first pass whose own error estimate is below it (the biased rule).
+fn image_mean(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    settings: &Settings,
+    seed: u64,
+    stop_below: Option<f64>,
+) -> f64 {
+    loaded.scene.seed = seed;
+    loaded.integrator.preprocess(&loaded.scene);
+    let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        settings,
+        &mut state,
+        Scope::whole(0),
+        &AtomicBool::new(false),
+        &|_| {},
+        &mut |state| match (stop_below, state.history.raw_error()) {
+            (Some(target), Some(e)) if e.value < target => Control::Stop,
+            _ => Control::Continue,
+        },
+    )
+    .expect("render");
+    let film = state
+        .sums
+        .resolve(&loaded.scene, loaded.integrator.as_ref());
+    let y = luminance(&film);
+    y.iter().sum::<f64>() / y.len() as f64
+}
+
+fn mean_and_variance_of_mean(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let m = values.iter().sum::<f64>() / n;
+    let v = values.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, v / n)
+}
+
+fn bias(o: &Options, scene: &Path) {
+    use lumis::chi2::{FAMILY_FALSE_ALARM, z_limit};
+    let mut loaded = load(o, scene, &[format!("sampler.spp={}", o.spp)]);
+    let cap = lumis::passes::DEFAULT_MAX_SPP;
+    let planned = Settings {
+        stopping: Stopping::Target {
+            error: o.target,
+            max_spp: cap,
+            max_time: None,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    // Passes of 2 samples with every weight one (each planned for what remains of the cap).
+    let equal = Settings {
+        stopping: Stopping::Samples {
+            spp: cap,
+            passes: cap / 2,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    let plain = Settings::samples(o.spp);
+    let r = o.renders as u64;
+    let plain: Vec<f64> = (0..r)
+        .map(|s| image_mean(&mut loaded, &plain, 2_000_000 + s, None))
+        .collect();
+    let planned: Vec<f64> = (0..r)
+        .map(|s| image_mean(&mut loaded, &planned, s, None))
+        .collect();
+    let seen: Vec<f64> = (0..r)
+        .map(|s| image_mean(&mut loaded, &equal, 1_000_000 + s, Some(o.target)))
+        .collect();
+    let (m0, v0) = mean_and_variance_of_mean(&plain);
+    let limit = z_limit(FAMILY_FALSE_ALARM);
+    for (rule, values) in [
+        ("planned weights", &planned),
+        ("equal weights, stop after seeing", &seen),
+    ] {
+        let (m, v) = mean_and_variance_of_mean(values);
+        let se = (v + v0).sqrt() / m0;
+        let relative = m / m0 - 1.0;
+        println!(
+            "| {} | {} | {rule} | {} | {:+.4} | {:.4} | {:+.2} | {:.2} | {:.2} % |",
+            scene.file_stem().unwrap().to_string_lossy(),
+            o.target,
+            o.renders,
+            relative,
+            se,
+            relative / se,
+            limit,
+            100.0 * (limit + 1.281_552) * se
         );
     }
 }
@@ -432,19 +546,26 @@ fn main() {
     };
     if o.mode == "coverage" {
         println!(
-            "| scene | target | renders | e < E | interval holds e | e above interval | mean ê/e | spp median [min, max] | passes | stops |"
+            "| scene | target | renders | e < E | interval holds e | e above interval | mean ê/e | spp median [min, max] | passes | N·Σu²n/M² | stops |"
         );
-        println!("|---|---|---|---|---|---|---|---|---|---|");
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
     }
     if o.mode == "calibration" {
         println!(
-            "| scene | spp | mean e | ê (Ŷ²) / e | ê (AB) / e | ê (neighbours) / e | coverage (Ŷ²) |"
+            "| scene | spp | mean e | half-image ê / e | stated ê / e | coverage (half-image) | coverage (stated) |"
         );
         println!("|---|---|---|---|---|---|---|");
+    }
+    if o.mode == "bias" {
+        println!(
+            "| scene | target | renders | rule | relative bias | standard error | z | limit | detected with probability 0.9 |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|");
     }
     for scene in &o.scenes {
         match o.mode.as_str() {
             "coverage" => coverage(&o, scene),
+            "bias" => bias(&o, scene),
             "calibration" => calibration(&o, scene),
             _ => cost(&o, scene),
         }
