@@ -15,6 +15,7 @@ mod extremes;
 mod import;
 mod import_hostile;
 mod integrators;
+mod module_layers;
 mod one_point;
 mod passes;
 mod render;

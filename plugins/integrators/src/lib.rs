@@ -19,8 +19,9 @@
 //! [`allocation::Allocation`] (how a light's N samples are split between the techniques, in
 //! phases) with a [`weighting::Weighting`] (how a phase's samples are weighed), paired by
 //! [`allocation::Weighted`]; one that makes its own weights implements `Method` itself. The
-//! modules the plugins share, each importing only modules listed before it (tests below check
-//! that no module imports itself through others and that none of these imports a plugin):
+//! modules the plugins share, each importing only modules listed before it (the workspace's
+//! `tests/module_layers.rs` checks that no module imports itself through others and that none
+//! of these imports a plugin):
 //!
 //! - [`shading_point`], `batch`: a surface point seen by the camera, and each thread's space
 //!   for the batch calls;
@@ -76,8 +77,6 @@ pub fn link() {}
 #[cfg(test)]
 mod tests {
     use lumis_core::registry::{IntegratorPlugin, PluginInfo, builtin};
-    use std::collections::{BTreeMap, BTreeSet};
-    use std::path::Path;
 
     /// The methods this file's doc lists, in its list of `- `name`: ...` lines.
     fn listed_methods() -> Vec<String> {
@@ -99,112 +98,5 @@ mod tests {
             .map(|p| p.name().to_string())
             .collect();
         assert_eq!(listed, registered, "the list in lib.rs's doc");
-    }
-
-    /// The crate modules each source file refers to (`crate::module` paths and `use crate::{…}`
-    /// groups in code, comments left out), tests included.
-    fn module_imports(source: &str) -> BTreeSet<String> {
-        let code: String = source
-            .lines()
-            .filter(|l| !l.trim_start().starts_with("//"))
-            .collect::<Vec<_>>()
-            .join("\n");
-        let ident = |s: &str| -> String {
-            s.chars()
-                .take_while(|c| c.is_alphanumeric() || *c == '_')
-                .collect()
-        };
-        let mut modules = BTreeSet::new();
-        for (at, _) in code.match_indices("crate::") {
-            let rest = &code[at + "crate::".len()..];
-            if let Some(group) = rest.strip_prefix('{') {
-                let group = &group[..group.find('}').unwrap_or(group.len())];
-                modules.extend(group.split(',').map(|item| ident(item.trim())));
-            } else {
-                modules.insert(ident(rest));
-            }
-        }
-        modules.remove("");
-        modules
-    }
-
-    /// Each module of the crate with the modules it imports, and whether it is a plugin (its
-    /// file submits a registration).
-    fn module_graph() -> BTreeMap<String, (BTreeSet<String>, bool)> {
-        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-        let mut graph = BTreeMap::new();
-        for entry in std::fs::read_dir(&src).expect("src/") {
-            let path = entry.expect("a directory entry").path();
-            if path.extension().is_some_and(|e| e == "rs") {
-                let module = path.file_stem().and_then(|m| m.to_str()).expect("UTF-8");
-                let text = std::fs::read_to_string(&path).expect("a source file");
-                let mut imports = module_imports(&text);
-                imports.remove(module);
-                let plugin = text.contains(concat!("inventory::", "submit!"));
-                graph.insert(module.to_string(), (imports, plugin));
-            }
-        }
-        assert!(graph.len() >= 20, "found only {:?}", graph.keys());
-        graph
-    }
-
-    /// The modules that are not plugins import none: plugins build on them, never the reverse.
-    #[test]
-    fn shared_modules_import_no_plugin() {
-        let graph = module_graph();
-        for (module, (imports, plugin)) in &graph {
-            for import in imports {
-                let imports_plugin = graph.get(import).is_some_and(|(_, p)| *p);
-                assert!(
-                    *plugin || !imports_plugin,
-                    "{module}.rs, shared by the plugins, imports the plugin {import}"
-                );
-            }
-        }
-        assert!(graph.values().filter(|(_, plugin)| *plugin).count() >= 12);
-    }
-
-    /// No two modules of the crate import each other, directly or through others: the
-    /// modules form layers (a depth-first search of the graph of `crate::` imports).
-    #[test]
-    fn no_module_imports_itself_through_others() {
-        let graph: BTreeMap<String, BTreeSet<String>> = module_graph()
-            .into_iter()
-            .map(|(module, (imports, _))| (module, imports))
-            .collect();
-        // 0: not visited, 1: on the current path, 2: done.
-        fn visit(
-            module: &str,
-            graph: &BTreeMap<String, BTreeSet<String>>,
-            state: &mut BTreeMap<String, u8>,
-            path: &mut Vec<String>,
-        ) {
-            path.push(module.to_string());
-            match state.get(module).copied().unwrap_or(0) {
-                1 => panic!("import circle: {}", path.join(" → ")),
-                2 => {}
-                _ => {
-                    state.insert(module.to_string(), 1);
-                    for next in graph.get(module).into_iter().flatten() {
-                        visit(next, graph, state, path);
-                    }
-                    state.insert(module.to_string(), 2);
-                }
-            }
-            path.pop();
-        }
-        let mut state = BTreeMap::new();
-        for module in graph.keys() {
-            visit(module, &graph, &mut state, &mut Vec::new());
-        }
-    }
-
-    /// The import scan finds single paths, groups and nested paths, not comments.
-    #[test]
-    fn the_import_scan_reads_paths_and_groups() {
-        let source =
-            "use crate::a::B;\nuse crate::{b, c::D};\n// crate::e\nfn f() { crate::g::h(); }";
-        let found: Vec<String> = module_imports(source).into_iter().collect();
-        assert_eq!(found, ["a", "b", "c", "g"]);
     }
 }
