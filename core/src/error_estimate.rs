@@ -14,7 +14,7 @@
 //! variance, (1/P²) Σ_p Var(A_p)² / d_p², is estimated by (1/P²) Σ_p (A_p − B_p)⁴ / (12 d_p²)
 //! (exact for normal half-means, larger for heavy-tailed ones), which gives the interval.
 
-use crate::render::FilmSums;
+use crate::film_sums::FilmSums;
 use statrs::distribution::{ContinuousCDF, Normal};
 
 /// ε of the relative MSE as a fraction of the image's mean luminance, as `lumis study`'s default

@@ -6,12 +6,14 @@
 //! pass, and every statistic over the image visits the pixels in one fixed order.
 
 use crate::film::Film;
-use crate::integrator::Integrator;
 use crate::math::Rgb;
 use crate::output::Window;
-use crate::render::TILE_SIZE;
 use crate::scene::Scene;
 use glam::{DVec3, UVec2};
+
+/// Tile edge in pixels: small enough to balance two cores on small images, large enough that
+/// scheduling costs nothing.
+pub const TILE_SIZE: u32 = 16;
 
 /// Per pixel of the window (tile-major order), the sums of its camera samples.
 #[derive(Clone, Debug, PartialEq)]
@@ -260,33 +262,6 @@ impl FilmSums {
         }
     }
 
-    /// The film these sums resolve to with `integrator` (the one that rendered them, on the
-    /// same scene): each pixel as the one-process render resolves it; pixels without samples
-    /// stay black.
-    pub fn resolve(&self, scene: &Scene, integrator: &dyn Integrator) -> Film {
-        let mut film = Film::new(
-            self.full_width,
-            self.full_height,
-            self.window,
-            integrator.aovs(scene),
-        );
-        let channels = film.aov_channels();
-        for p in 0..self.samples.len() {
-            let row = self.row_index(p);
-            resolve_pixel(
-                scene,
-                integrator,
-                self.samples[p],
-                self.color[p],
-                self.weight[p],
-                &self.sums[p * self.stride..(p + 1) * self.stride],
-                &mut film.color[row],
-                &mut film.aov_data[row * channels..(row + 1) * channels],
-            );
-        }
-        film
-    }
-
     /// The colour the sums resolve to, without AOVs (a preview between passes).
     pub fn resolve_color(&self) -> Film {
         let mut film = Film::new(self.full_width, self.full_height, self.window, Vec::new());
@@ -307,30 +282,8 @@ impl FilmSums {
 /// A pixel's colour from its weighted colour sum and weight: the mean of its samples in a
 /// plain render (weight = count), the passes' unbiased combination in a render in passes.
 #[inline]
-fn pixel_color(color: DVec3, weight: f64) -> Rgb {
+pub(crate) fn pixel_color(color: DVec3, weight: f64) -> Rgb {
     (color / weight).as_vec3()
-}
-
-/// A pixel's colour and AOV values from its sums; nothing for a pixel without samples (left
-/// black). The one place sums become a pixel, so that a render resolved tile by tile and sums
-/// merged from shards give the same bits.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn resolve_pixel(
-    scene: &Scene,
-    integrator: &dyn Integrator,
-    samples: u32,
-    color_sum: DVec3,
-    weight: f64,
-    sums: &[f64],
-    color: &mut Rgb,
-    aovs: &mut [f32],
-) -> bool {
-    if samples == 0 {
-        return false;
-    }
-    *color = pixel_color(color_sum, weight);
-    integrator.resolve(scene, sums, samples, aovs);
-    true
 }
 
 #[cfg(test)]

@@ -178,7 +178,7 @@ pub trait Integrator: Send + Sync {
     /// one pass of a plain render), with what the pass gives each pixel and the sums of the
     /// passes before it: where an allocation that learns from earlier passes reads them. What
     /// it decides for the pass must depend on these only (docs/integrators.md, "Passes").
-    fn begin_pass(&mut self, _scene: &Scene, _pass: &crate::progressive::PassContext<'_>) {}
+    fn begin_pass(&mut self, _scene: &Scene, _pass: &crate::passes::PassContext<'_>) {}
 
     /// Shades one camera sample: returns its radiance estimate and *adds* its statistics to
     /// `sums`, the pixel's `pixel_sums` sums so far (all zero before its first sample). It must

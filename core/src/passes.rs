@@ -19,6 +19,7 @@
 //! Over 600 lines: about half is the planner's tests, which drive its private functions.
 
 use crate::error_estimate::{ErrorEstimate, Metric, one_sided_z};
+use crate::film_sums::FilmSums;
 
 /// Samples per pixel of a target or time render's first pass, planned with no data: its weight
 /// is 2/T, so that it costs at most its own samples when the render needs few.
@@ -92,6 +93,17 @@ impl Budget {
             PixelPasses::PerPixel(passes) => passes[p],
         }
     }
+}
+
+/// What the integrator is shown before a pass ([`Integrator::begin_pass`](crate::integrator::Integrator::begin_pass)).
+pub struct PassContext<'a> {
+    /// The pass's index (0 for the first).
+    pub index: usize,
+    /// What each pixel gets in the pass.
+    pub budget: &'a Budget,
+    /// The passes before it and their sums: everything a decision about the pass may read.
+    pub history: &'a History,
+    pub sums: &'a FilmSums,
 }
 
 /// u_k: a pixel's weight per camera sample in a pass, from the render's mass, the mass the pixel

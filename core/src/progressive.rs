@@ -10,6 +10,7 @@
 
 use crate::error_estimate;
 use crate::integrator::Integrator;
+pub use crate::passes::PassContext;
 use crate::passes::{self, Budget, Decision, History, PassRecord, PlannedPass, Settings, Stop};
 use crate::render::{self, FilmSums, RenderStats, Shard};
 use crate::scene::Scene;
@@ -39,17 +40,6 @@ impl RenderState {
             current: None,
         }
     }
-}
-
-/// What the integrator is shown before a pass ([`Integrator::begin_pass`]).
-pub struct PassContext<'a> {
-    /// The pass's index (0 for the first).
-    pub index: usize,
-    /// What each pixel gets in the pass.
-    pub budget: &'a Budget,
-    /// The passes before it and their sums: everything a decision about the pass may read.
-    pub history: &'a History,
-    pub sums: &'a FilmSums,
 }
 
 /// The caller's answer after a pass.

@@ -14,7 +14,7 @@
 
 use crate::film::Film;
 pub use crate::film_sums::FilmSums;
-use crate::film_sums::{TileSumsMut, resolve_pixel, tiles};
+use crate::film_sums::{TileSumsMut, pixel_color, tiles};
 use crate::geometry::{PACKET_SIZE, take_ray_count};
 use crate::integrator::{CameraSample, Integrator};
 use crate::math::Rgb;
@@ -25,9 +25,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// Tile edge in pixels: small enough to balance two cores on small images, large enough that
-/// scheduling costs nothing.
-pub const TILE_SIZE: u32 = 16;
+pub use crate::film_sums::TILE_SIZE;
 
 /// What a render did, for the summary line.
 #[derive(Clone, Copy, Debug)]
@@ -422,4 +420,56 @@ impl ResolvedTile {
         }
         tile
     }
+}
+
+/// Resolving needs the integrator (its AOVs), which the sums' module does not know of.
+impl FilmSums {
+    /// The film these sums resolve to with `integrator` (the one that rendered them, on the
+    /// same scene): each pixel as the one-process render resolves it; pixels without samples
+    /// stay black.
+    pub fn resolve(&self, scene: &Scene, integrator: &dyn Integrator) -> Film {
+        let mut film = Film::new(
+            self.full_width,
+            self.full_height,
+            self.window,
+            integrator.aovs(scene),
+        );
+        let channels = film.aov_channels();
+        for p in 0..self.samples.len() {
+            let row = self.row_index(p);
+            resolve_pixel(
+                scene,
+                integrator,
+                self.samples[p],
+                self.color[p],
+                self.weight[p],
+                &self.sums[p * self.stride..(p + 1) * self.stride],
+                &mut film.color[row],
+                &mut film.aov_data[row * channels..(row + 1) * channels],
+            );
+        }
+        film
+    }
+}
+
+/// A pixel's colour and AOV values from its sums; nothing for a pixel without samples (left
+/// black). The one place sums become a pixel, so that a render resolved tile by tile and sums
+/// merged from shards give the same bits.
+#[allow(clippy::too_many_arguments)]
+fn resolve_pixel(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    samples: u32,
+    color_sum: DVec3,
+    weight: f64,
+    sums: &[f64],
+    color: &mut Rgb,
+    aovs: &mut [f32],
+) -> bool {
+    if samples == 0 {
+        return false;
+    }
+    *color = pixel_color(color_sum, weight);
+    integrator.resolve(scene, sums, samples, aovs);
+    true
 }
