@@ -4,7 +4,7 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec2, Vec3};
-use lumis::bsdf::Bsdf;
+use lumis::bsdf::{Bsdf, BsdfContext};
 use lumis::emitter::{Emitter, ReferencePoint};
 use lumis::geometry::{Geometry, Intersection, Mesh, PACKET_SIZE, Ray, RayOrigin, ShapeGeometry};
 use lumis::integrator::CameraSample;
@@ -264,6 +264,10 @@ fn ray_queries(c: &mut Criterion) {
     group.finish();
 }
 
+/// The context of the BSDF benchmarks' shading points (one at a time, untextured, from the
+/// front).
+const FRONT: BsdfContext = BsdfContext::FRONT;
+
 /// A BSDF built through the registry, as a scene builds it.
 fn bsdf(spec: &str) -> Arc<dyn Bsdf> {
     lumis::link_plugins();
@@ -281,7 +285,7 @@ fn bsdfs(c: &mut Criterion) {
     let dir = tempfile::tempdir().expect("temporary directory");
     let merl = dir.path().join("glossy.binary");
     let glossy = bsdf("(type: \"glossy\", roughness: 0.2, specular: 0.5, diffuse: 0.3)");
-    lumis::bsdfs::measured::write_merl(&merl, |wi, wo| glossy.eval(wo, wi) / wi.z)
+    lumis::bsdfs::measured::write_merl(&merl, |wi, wo| glossy.eval(&FRONT, wo, wi) / wi.z)
         .expect("MERL file written");
     let models = [
         ("diffuse", bsdf("(type: \"diffuse\", reflectance: 0.5)")),
@@ -311,21 +315,21 @@ fn bsdfs(c: &mut Criterion) {
         group.bench_function(format!("{name}_sample"), |b| {
             b.iter(|| {
                 for &(wo, _, u_lobe, u) in &inputs {
-                    black_box(model.sample(wo, u_lobe, u));
+                    black_box(model.sample(&FRONT, wo, u_lobe, u));
                 }
             })
         });
         group.bench_function(format!("{name}_eval"), |b| {
             b.iter(|| {
                 for &(wo, wi, _, _) in &inputs {
-                    black_box(model.eval(wo, wi));
+                    black_box(model.eval(&FRONT, wo, wi));
                 }
             })
         });
         group.bench_function(format!("{name}_pdf"), |b| {
             b.iter(|| {
                 for &(wo, wi, _, _) in &inputs {
-                    black_box(model.pdf(wo, wi));
+                    black_box(model.pdf(&FRONT, wo, wi));
                 }
             })
         });
@@ -340,7 +344,7 @@ fn bsdfs(c: &mut Criterion) {
             b.iter(|| {
                 for (wo, chunk) in at_points() {
                     for &(_, _, u_lobe, u) in chunk {
-                        black_box(model.sample(wo, u_lobe, u));
+                        black_box(model.sample(&FRONT, wo, u_lobe, u));
                     }
                 }
             })
@@ -356,7 +360,7 @@ fn bsdfs(c: &mut Criterion) {
                     for (wo, chunk) in at_points().zip(numbers.chunks(POINT_SAMPLES)) {
                         wos.fill(wo.0);
                         let n = chunk.len();
-                        model.sample_batch(&wos[..n], chunk, &mut samples[..n]);
+                        model.sample_batch(&[FRONT], &wos[..n], chunk, &mut samples[..n]);
                         black_box(&samples);
                     }
                 })
@@ -367,7 +371,7 @@ fn bsdfs(c: &mut Criterion) {
             b.iter(|| {
                 for (wo, chunk) in at_points() {
                     for &(_, wi, _, _) in chunk {
-                        black_box(model.eval_pdf(wo, wi));
+                        black_box(model.eval_pdf(&FRONT, wo, wi));
                     }
                 }
             })
@@ -380,7 +384,7 @@ fn bsdfs(c: &mut Criterion) {
                     for (wo, chunk) in at_points().zip(directions.chunks(POINT_SAMPLES)) {
                         wos.fill(wo.0);
                         let n = chunk.len();
-                        model.eval_pdf_batch(&wos[..n], chunk, &mut values[..n]);
+                        model.eval_pdf_batch(&[FRONT], &wos[..n], chunk, &mut values[..n]);
                         black_box(&values);
                     }
                 })

@@ -8,6 +8,7 @@ pub use lumis_bsdfs as bsdfs;
 pub use lumis_core::*;
 pub use lumis_emitters as emitters;
 pub use lumis_integrators as integrators;
+pub use lumis_textures as textures;
 
 mod binary;
 pub mod embedding;
@@ -21,6 +22,7 @@ pub fn link_plugins() {
     lumis_bsdfs::link();
     lumis_emitters::link();
     lumis_integrators::link();
+    lumis_textures::link();
 }
 
 /// Entry points shared by the fuzz targets (`fuzz/`) and the corpus replay test, so that both

@@ -488,7 +488,8 @@ fn merl(spec: &str, output: &std::path::Path) -> Result<()> {
         lumis::params::Params::new(format!("bsdf ({})", spec.kind), plugin.params, spec.params)?;
     let bsdf = (plugin.create)(&mut params)?;
     params.finish()?;
-    lumis::bsdfs::measured::write_merl(output, |wi, wo| bsdf.eval(wo, wi) / wi.z)
+    let front = lumis::bsdf::BsdfContext::FRONT;
+    lumis::bsdfs::measured::write_merl(output, |wi, wo| bsdf.eval(&front, wo, wi) / wi.z)
         .map_err(anyhow::Error::msg)?;
     eprintln!("wrote {}", output.display());
     Ok(())

@@ -19,6 +19,10 @@ fn obj_text(m: &Mesh) -> String {
     for n in m.normals.as_ref().unwrap() {
         writeln!(s, "vn {} {} {}", n.x, n.y, n.z).unwrap();
     }
+    // OBJ's v runs up the image: the loader turns it to 1 − v (exact for the cube's 0 and 1).
+    for t in m.uvs.as_ref().unwrap() {
+        writeln!(s, "vt {} {}", t.x, 1.0 - t.y).unwrap();
+    }
     // Quads (the cube's triangle pairs share their first vertex); every other face with
     // negative indices.
     let count = m.positions.len() as i64;
@@ -31,7 +35,7 @@ fn obj_text(m: &Mesh) -> String {
             } else {
                 c as i64 - count
             };
-            write!(s, " {i}//{i}").unwrap();
+            write!(s, " {i}/{i}/{i}").unwrap();
         }
         s.push('\n');
     }
@@ -42,12 +46,13 @@ fn ply_bytes(m: &Mesh, format: &str) -> Vec<u8> {
     let mut out = format!(
         "ply\nformat {format} 1.0\ncomment cube\nelement vertex {}\nproperty float x\n\
          property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
-         property float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+         property float nz\nproperty float u\nproperty float v\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
         m.positions.len(),
         m.indices.len() / 2
     )
     .into_bytes();
     let normals = m.normals.as_ref().unwrap();
+    let uvs = m.uvs.as_ref().unwrap();
     let quads: Vec<[u32; 4]> = m
         .indices
         .chunks(2)
@@ -63,16 +68,26 @@ fn ply_bytes(m: &Mesh, format: &str) -> Vec<u8> {
     };
     if format == "ascii" {
         let mut s = String::new();
-        for (p, n) in m.positions.iter().zip(normals) {
-            writeln!(s, "{} {} {} {} {} {}", p.x, p.y, p.z, n.x, n.y, n.z).unwrap();
+        for ((p, n), t) in m.positions.iter().zip(normals).zip(uvs) {
+            writeln!(
+                s,
+                "{} {} {} {} {} {} {} {}",
+                p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y
+            )
+            .unwrap();
         }
         for q in &quads {
             writeln!(s, "4 {} {} {} {}", q[0], q[1], q[2], q[3]).unwrap();
         }
         out.extend(s.into_bytes());
     } else {
-        for (p, n) in m.positions.iter().zip(normals) {
-            for x in p.to_array().into_iter().chain(n.to_array()) {
+        for ((p, n), t) in m.positions.iter().zip(normals).zip(uvs) {
+            for x in p
+                .to_array()
+                .into_iter()
+                .chain(n.to_array())
+                .chain(t.to_array())
+            {
                 float(&mut out, x);
             }
         }
@@ -86,7 +101,7 @@ fn ply_bytes(m: &Mesh, format: &str) -> Vec<u8> {
     out
 }
 
-/// A `.gltf` and its external buffer `cube.bin`: POSITION, NORMAL, u32 indices.
+/// A `.gltf` and its external buffer `cube.bin`: POSITION, NORMAL, TEXCOORD_0, u32 indices.
 fn gltf_files(m: &Mesh) -> (String, Vec<u8>) {
     let mut bin = Vec::new();
     for p in &m.positions {
@@ -96,6 +111,10 @@ fn gltf_files(m: &Mesh) -> (String, Vec<u8>) {
     for n in m.normals.as_ref().unwrap() {
         bin.extend(n.to_array().iter().flat_map(|x| x.to_le_bytes()));
     }
+    let uvs_at = bin.len();
+    for t in m.uvs.as_ref().unwrap() {
+        bin.extend(t.to_array().iter().flat_map(|x| x.to_le_bytes()));
+    }
     let indices_at = bin.len();
     for t in &m.indices {
         bin.extend(t.iter().flat_map(|i| i.to_le_bytes()));
@@ -103,16 +122,19 @@ fn gltf_files(m: &Mesh) -> (String, Vec<u8>) {
     let n = m.positions.len();
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0,"name":"cube"}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1}},"indices":2}}]}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":3}},"indices":2}}]}}],
         "buffers":[{{"byteLength":{len},"uri":"cube.bin"}}],
         "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{normals_at}}},
             {{"buffer":0,"byteOffset":{normals_at},"byteLength":{nlen}}},
-            {{"buffer":0,"byteOffset":{indices_at},"byteLength":{ilen}}}],
+            {{"buffer":0,"byteOffset":{indices_at},"byteLength":{ilen}}},
+            {{"buffer":0,"byteOffset":{uvs_at},"byteLength":{tlen}}}],
         "accessors":[{{"bufferView":0,"componentType":5126,"count":{n},"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]}},
             {{"bufferView":1,"componentType":5126,"count":{n},"type":"VEC3"}},
-            {{"bufferView":2,"componentType":5125,"count":{icount},"type":"SCALAR"}}]}}"#,
+            {{"bufferView":2,"componentType":5125,"count":{icount},"type":"SCALAR"}},
+            {{"bufferView":3,"componentType":5126,"count":{n},"type":"VEC2"}}]}}"#,
         len = bin.len(),
-        nlen = indices_at - normals_at,
+        nlen = uvs_at - normals_at,
+        tlen = indices_at - uvs_at,
         ilen = bin.len() - indices_at,
         icount = m.indices.len() * 3,
     );

@@ -51,7 +51,7 @@ const PILOT_RUNS: u64 = 16;
 const BLOCK: usize = 6;
 /// Power stated (and required) by the same-mean test: the relative bias it detects with
 /// probability at least 90 % is (limit + Φ⁻¹(0.9)) σ(δ̂).
-const Z_POWER_90: f64 = 1.281_551_6;
+pub(crate) const Z_POWER_90: f64 = 1.281_551_6;
 
 /// Per-pixel luminance of independent renders: the mean over runs and the variance of that
 /// mean (sample variance over runs / runs), and every run's image.
@@ -129,7 +129,7 @@ fn run_sums_variance(runs: &PixelMeans, weights: &[f64], pixels: &[usize]) -> f6
 /// The two-sided quantile of Student's t with ν degrees of freedom at false-alarm rate `alpha`,
 /// from the normal one by the Cornish–Fisher expansion (Abramowitz & Stegun 26.7.5; relative
 /// error below 10⁻³ for ν ≥ 10 at the rates used here).
-fn t_limit(alpha: f64, nu: f64) -> f64 {
+pub(crate) fn t_limit(alpha: f64, nu: f64) -> f64 {
     let z = z_limit(alpha);
     let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
     z + (z3 + z) / (4.0 * nu)

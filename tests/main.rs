@@ -21,6 +21,7 @@ mod passes;
 mod render;
 mod robustness;
 mod study;
+mod surfaces;
 
 /// Every `.rs` file and directory module in the `tests/` of each package whose test discovery is
 /// off (this one, `lumis-bsdfs`, `lumis-emitters`) is declared in its `tests/main.rs`: one that

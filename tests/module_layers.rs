@@ -16,11 +16,12 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 
 /// The library crates checked, by directory in the workspace.
-const CHECKED_CRATES: [&str; 6] = [
+const CHECKED_CRATES: [&str; 7] = [
     "core",
     "plugins/bsdfs",
     "plugins/emitters",
     "plugins/integrators",
+    "plugins/textures",
     "plugins/examples/mis_methods",
     "plugins/examples/oren_nayar",
 ];

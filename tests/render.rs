@@ -231,9 +231,11 @@ fn gltf_meshes_load_with_node_transforms_and_names() {
 /// file exists.
 #[test]
 fn every_plugin_file_is_registered() {
-    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, builtin};
+    use lumis::registry::{
+        BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, TexturePlugin, builtin,
+    };
     lumis::link_plugins();
-    fn check<P: PluginInfo + lumis::inventory::Collect>(dir: &str) {
+    fn check<P: PluginInfo + lumis::inventory::Collect>(dir: &str, least: usize) {
         let mut files: Vec<String> = std::fs::read_dir(repo_path(&format!("plugins/{dir}/src")))
             .unwrap()
             .map(|e| e.unwrap().path())
@@ -244,15 +246,16 @@ fn every_plugin_file_is_registered() {
             .collect();
         files.sort();
         let registered: Vec<&str> = builtin::<P>().iter().map(|p| p.name()).collect();
-        assert!(files.len() >= 4, "{dir}: found only {files:?}");
+        assert!(files.len() >= least, "{dir}: found only {files:?}");
         assert_eq!(
             registered, files,
             "{dir}: registered plugins vs plugin files"
         );
     }
-    check::<BsdfPlugin>("bsdfs");
-    check::<EmitterPlugin>("emitters");
-    check::<IntegratorPlugin>("integrators");
+    check::<BsdfPlugin>("bsdfs", 4);
+    check::<EmitterPlugin>("emitters", 4);
+    check::<TexturePlugin>("textures", 1);
+    check::<IntegratorPlugin>("integrators", 4);
 }
 
 #[test]
@@ -270,7 +273,9 @@ fn plugin_reference_is_current() {
 /// its default.
 #[test]
 fn plugin_files_document_their_parameters() {
-    use lumis::registry::{BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, builtin};
+    use lumis::registry::{
+        BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, TexturePlugin, builtin,
+    };
     lumis::link_plugins();
     fn check<P: PluginInfo + lumis::inventory::Collect>(dir: &str) {
         for p in builtin::<P>() {
@@ -303,6 +308,7 @@ fn plugin_files_document_their_parameters() {
     }
     check::<BsdfPlugin>("bsdfs");
     check::<EmitterPlugin>("emitters");
+    check::<TexturePlugin>("textures");
     check::<IntegratorPlugin>("integrators");
 }
 

@@ -1,216 +1,322 @@
-//! The BSDF interface. Everything is in the local shading frame: z is the shading normal,
-//! `wo` points toward the viewer, `wi` toward the light; both are unit vectors.
+//! The BSDF interface (plugin API version 4). Everything is in the local shading frame: z is the
+//! shading normal turned toward the viewer, `wo` points toward the viewer, `wi` toward the
+//! light; both are unit vectors. Each method is also given the shading point's
+//! [`BsdfContext`]: its texture coordinates and the side of the surface the viewer is on.
+//!
+//! Transport is radiance only (lumis traces from the camera): `eval` is the BSDF of radiance
+//! transport, f(wo, wi) · |cos θi|, and a transmissive BSDF includes in it, and in its samples'
+//! weights, the factor 1/η² of radiance crossing an interface (η = η_i / η_o, the index of
+//! refraction on wi's side over wo's), as Mitsuba 3 does in its radiance mode. Such an `eval`
+//! is not symmetric: it satisfies f(wo, wi) / η_o² = f(wi, wo) / η_i² (Veach 1997, §5.2), the
+//! form the reciprocity tests of transmissive BSDFs check.
+//!
+//! [`lanes`](self::lanes) holds the form of the interface written over
+//! [`Lanes`](crate::math::lanes::Lanes) ([`BsdfLanes`]): one formula for one sample or for
+//! several, at one shading point or at several.
+
+mod context;
+mod lanes;
+mod sample;
+
+pub use context::{BsdfContext, Side};
+pub use lanes::{
+    BsdfContextLanes, BsdfLanes, BsdfSampleLanes, eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes,
+    sample_one,
+};
+pub use sample::BsdfSample;
 
 use crate::math::Rgb;
-use crate::math::lanes::{LaneKernel, Lanes, V3, by_groups, one_or_each, with_widest_lanes};
+use crate::math::lanes::one_or_each;
 use glam::{Vec2, Vec3};
+use std::ops::{BitAnd, BitOr, BitOrAssign};
 
-/// Which kinds of lobes a BSDF has; integrators use it to skip work (e.g. light sampling is
-/// useless for a purely delta BSDF).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct BsdfFlags {
-    pub diffuse: bool,
-    pub glossy: bool,
-    /// A Dirac lobe: `eval` and `pdf` are zero for every given direction.
-    pub delta: bool,
+/// Which kinds of lobes a BSDF has, and whether it varies over the surface; integrators use
+/// them to skip work (light sampling is useless for a purely delta BSDF), the shading point to
+/// know whether to compute texture coordinates and whether light may pass through.
+///
+/// A set of bits, combined with `|`: `BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::GLOSSY_REFLECTION`.
+/// Each lobe kind comes as a reflection and a transmission bit (Mitsuba 3's `BSDFFlags`), so
+/// that a transmitting BSDF says so; [`diffuse`](Self::diffuse), [`transmission`](Self::transmission)
+/// and the other queries test either.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct BsdfFlags(u32);
+
+impl BsdfFlags {
+    /// No lobe: the surface scatters nothing (the back of a one-sided BSDF).
+    pub const NONE: Self = BsdfFlags(0);
+    pub const DIFFUSE_REFLECTION: Self = BsdfFlags(1);
+    pub const GLOSSY_REFLECTION: Self = BsdfFlags(1 << 1);
+    /// A Dirac lobe of reflection (a mirror): `eval` and `pdf` are zero for every given direction.
+    pub const DELTA_REFLECTION: Self = BsdfFlags(1 << 2);
+    pub const DIFFUSE_TRANSMISSION: Self = BsdfFlags(1 << 3);
+    pub const GLOSSY_TRANSMISSION: Self = BsdfFlags(1 << 4);
+    /// A Dirac lobe of transmission (smooth glass).
+    pub const DELTA_TRANSMISSION: Self = BsdfFlags(1 << 5);
+    /// The BSDF reads [`BsdfContext::uv`] (a textured parameter): the shading point computes
+    /// the texture coordinates for it. The scene loader adds it to the flags of a BSDF that
+    /// was given a texture, so a BSDF need not say it for its textured parameters.
+    pub const SPATIALLY_VARYING: Self = BsdfFlags(1 << 6);
+
+    pub const DIFFUSE: Self = BsdfFlags(Self::DIFFUSE_REFLECTION.0 | Self::DIFFUSE_TRANSMISSION.0);
+    pub const GLOSSY: Self = BsdfFlags(Self::GLOSSY_REFLECTION.0 | Self::GLOSSY_TRANSMISSION.0);
+    pub const DELTA: Self = BsdfFlags(Self::DELTA_REFLECTION.0 | Self::DELTA_TRANSMISSION.0);
+    pub const REFLECTION: Self = BsdfFlags(
+        Self::DIFFUSE_REFLECTION.0 | Self::GLOSSY_REFLECTION.0 | Self::DELTA_REFLECTION.0,
+    );
+    pub const TRANSMISSION: Self = BsdfFlags(
+        Self::DIFFUSE_TRANSMISSION.0 | Self::GLOSSY_TRANSMISSION.0 | Self::DELTA_TRANSMISSION.0,
+    );
+
+    /// The bits of both.
+    pub const fn union(self, other: Self) -> Self {
+        BsdfFlags(self.0 | other.0)
+    }
+
+    /// Whether every bit of `other` is set.
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// Whether some bit of `other` is set.
+    pub const fn intersects(self, other: Self) -> bool {
+        self.0 & other.0 != 0
+    }
+
+    /// A diffuse lobe, of reflection or transmission.
+    pub const fn diffuse(self) -> bool {
+        self.intersects(Self::DIFFUSE)
+    }
+
+    /// A glossy lobe, of reflection or transmission.
+    pub const fn glossy(self) -> bool {
+        self.intersects(Self::GLOSSY)
+    }
+
+    /// A Dirac lobe, of reflection or transmission.
+    pub const fn delta(self) -> bool {
+        self.intersects(Self::DELTA)
+    }
+
+    /// Some lobe of reflection.
+    pub const fn reflection(self) -> bool {
+        self.intersects(Self::REFLECTION)
+    }
+
+    /// Some lobe of transmission: directions on the far side of the surface (`wi.z < 0`) are
+    /// valid.
+    pub const fn transmission(self) -> bool {
+        self.intersects(Self::TRANSMISSION)
+    }
+
+    /// See [`SPATIALLY_VARYING`](Self::SPATIALLY_VARYING).
+    pub const fn spatially_varying(self) -> bool {
+        self.intersects(Self::SPATIALLY_VARYING)
+    }
+
+    /// Only Dirac lobes, which light sampling can never reach.
+    pub const fn is_pure_delta(self) -> bool {
+        self.delta() && !self.intersects(Self::DIFFUSE.union(Self::GLOSSY))
+    }
+
+    /// No lobe at all: the surface scatters nothing.
+    pub const fn is_black(self) -> bool {
+        !self.intersects(Self::REFLECTION.union(Self::TRANSMISSION))
+    }
 }
 
-/// One direction drawn by [`Bsdf::sample`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BsdfSample {
-    pub wi: Vec3,
-    /// Density in solid angle; for a delta lobe, the discrete probability of choosing it.
-    pub pdf: f32,
-    /// `eval(wo, wi) / pdf` (for a delta lobe, the lobe's weight divided by its probability).
-    pub weight: Rgb,
-    pub delta: bool,
+impl BitOr for BsdfFlags {
+    type Output = Self;
+    fn bitor(self, rhs: Self) -> Self {
+        self.union(rhs)
+    }
 }
 
-/// A reflectance model. `eval` includes the cosine foreshortening |cos θi|, so the
-/// Monte Carlo weight of a sampled direction is `eval / pdf` with no further factor.
+impl BitOrAssign for BsdfFlags {
+    fn bitor_assign(&mut self, rhs: Self) {
+        *self = self.union(rhs);
+    }
+}
+
+impl BitAnd for BsdfFlags {
+    type Output = Self;
+    fn bitand(self, rhs: Self) -> Self {
+        BsdfFlags(self.0 & rhs.0)
+    }
+}
+
+/// A scattering model: reflection, and transmission where its flags say so.
+///
+/// `eval` includes the cosine foreshortening |cos θi|, so the Monte Carlo weight of a sampled
+/// direction is `eval / pdf` with no further factor. Each method is given the shading point's
+/// [`BsdfContext`]; a BSDF with textured parameters reads their values at `ctx.uv`.
+///
+/// Directions: `wo.z > 0` for a viewer above the shading normal (it can be ≤ 0 where the
+/// shading normal bends away from the geometric one: the BSDF then returns zero, or handles it
+/// as it sees fit). A reflecting BSDF returns zero for `wi.z ≤ 0`; a transmitting one (with a
+/// `*_TRANSMISSION` flag) is evaluated and sampled on both sides. The shading point discards a
+/// direction whose side of the geometric surface disagrees with its local `wi.z` (shading
+/// normals would otherwise leak light), so a BSDF need not check that.
+///
+/// Sidedness is not a BSDF's business: a BSDF is evaluated the same from both sides (the frame
+/// turned toward the viewer). A scene makes a BSDF one-sided (black seen from behind) with the
+/// `one_sided` key of its `bsdfs` entry, which the shading point applies (it shades the back of
+/// such a surface with [`Absorber`]); a BSDF that differs by side (Mitsuba's `twosided` with a
+/// front and a back BSDF, a dielectric) reads [`BsdfContext::side`].
 pub trait Bsdf: Send + Sync {
     /// f(wo, wi) · |cos θi|.
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb;
+    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb;
     /// Solid-angle density with which `sample` draws `wi` (zero for delta lobes).
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32;
     /// `eval` and `pdf` of one pair of directions, bit for bit as the two calls give them. The
     /// default makes the two calls; a BSDF whose value and density share work (a microfacet
     /// lobe's D(h) and Λ(ωo)) computes it once, as Mitsuba's `eval_pdf` does. Light sampling
     /// needs both for every unoccluded sample, and so does [`sample_from_pdf`].
-    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        (self.eval(wo, wi), self.pdf(wo, wi))
+    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        (self.eval(ctx, wo, wi), self.pdf(ctx, wo, wi))
     }
     /// Draws a direction; `u_lobe` chooses among lobes, `u` places the direction in it.
-    fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
+    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
+    /// The lobes, and [`BsdfFlags::SPATIALLY_VARYING`] for a BSDF that reads `ctx.uv`.
     fn flags(&self) -> BsdfFlags;
 
-    /// [`eval_pdf`](Self::eval_pdf) of each pair `(wo[k], wi[k])`, into `out[k]`: the many
-    /// samples of one shading point (then `wo` may hold their one ωo), or one sample each of
-    /// several camera samples, at once. `wi` is as long as `out`, `wo` too or of length 1. The
-    /// default calls `eval_pdf` for each; a BSDF whose formulas are written over [`Lanes`]
-    /// evaluates four at a time, bit for bit as `eval_pdf`.
-    fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
+    /// [`eval_pdf`](Self::eval_pdf) of each pair `(wo[k], wi[k])` at `ctx[k]`, into `out[k]`:
+    /// the many samples of one shading point (then `ctx` and `wo` may hold their one context
+    /// and ωo), or the samples of several points at once. `wi` is as long as `out`; `ctx` and
+    /// `wo` too, or of length 1. The default calls `eval_pdf` for each; a BSDF whose formulas
+    /// are written over [`Lanes`](crate::math::lanes::Lanes) ([`BsdfLanes`]) evaluates four
+    /// or eight at a time ([`eval_pdf_in_lanes`]), bit for bit as `eval_pdf`.
+    fn eval_pdf_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        wi: &[Vec3],
+        out: &mut [(Rgb, f32)],
+    ) {
         assert!(wi.len() == out.len(), "one result per direction");
         for (k, (wi, out)) in wi.iter().zip(out).enumerate() {
-            *out = self.eval_pdf(one_or_each(wo, k), *wi);
+            *out = self.eval_pdf(&one_or_each(ctx, k), one_or_each(wo, k), *wi);
         }
     }
 
-    /// [`sample`](Self::sample) for each `wo[k]` and `u[k] = (u_lobe, u)`, into `out[k]`. `u`
-    /// is as long as `out`, `wo` too or of length 1 (one shading point). The default calls
-    /// `sample` for each; an override must give what `sample` gives, bit for bit.
-    fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
+    /// [`sample`](Self::sample) for each `ctx[k]`, `wo[k]` and `u[k] = (u_lobe, u)`, into
+    /// `out[k]`. `u` is as long as `out`; `ctx` and `wo` too, or of length 1 (one shading
+    /// point). The default calls `sample` for each; an override must give what `sample`
+    /// gives, bit for bit.
+    fn sample_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        u: &[(f32, Vec2)],
+        out: &mut [Option<BsdfSample>],
+    ) {
         assert!(u.len() == out.len(), "one result per sample");
         for (k, (&(u_lobe, u), out)) in u.iter().zip(out).enumerate() {
-            *out = self.sample(one_or_each(wo, k), u_lobe, u);
+            *out = self.sample(&one_or_each(ctx, k), one_or_each(wo, k), u_lobe, u);
         }
-    }
-}
-
-/// Samples of a BSDF written over [`Lanes`]: one per lane, `valid` where the lane drew one.
-pub struct BsdfSampleLanes<L: Lanes> {
-    pub valid: L::Mask,
-    pub wi: V3<L>,
-    pub pdf: L,
-    pub weight: V3<L>,
-}
-
-impl<L: Lanes> BsdfSampleLanes<L> {
-    /// [`sample_from_pdf`] in each lane: directions `wi`, drawn where `drawn` is set, whose
-    /// `eval_pdf` is `(value, pdf)`.
-    #[inline(always)]
-    pub fn from_pdf(drawn: L::Mask, wi: V3<L>, (value, pdf): (V3<L>, L)) -> Self {
-        let zero = L::splat(0.0);
-        let weight = value / pdf;
-        let valid = drawn
-            & wi.z.gt(zero)
-            & wi.is_finite()
-            & pdf.gt(zero)
-            & pdf.is_finite()
-            & weight.is_finite();
-        BsdfSampleLanes {
-            valid,
-            wi,
-            pdf,
-            weight,
-        }
-    }
-
-    /// Lane `i`'s sample, if it drew one.
-    #[inline(always)]
-    pub fn lane(&self, i: usize) -> Option<BsdfSample> {
-        use crate::math::lanes::Mask;
-        self.valid.lane(i).then(|| BsdfSample {
-            wi: self.wi.lane(i),
-            pdf: self.pdf.lane(i),
-            weight: self.weight.lane(i),
-            delta: false,
-        })
     }
 }
 
 /// The sample of a direction `wi` drawn by a BSDF whose `pdf` is the density it was drawn with:
-/// pdf and weight eval/pdf from the BSDF itself, so they agree by construction. `None` below
-/// the horizon or where the density or the weight is not a positive finite number.
-pub fn sample_from_pdf<B: Bsdf + ?Sized>(bsdf: &B, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
+/// pdf and weight eval/pdf from the BSDF itself, so they agree by construction. `None` on the
+/// horizon (`wi.z = 0`) or where the density or the weight is not a positive finite number.
+pub fn sample_from_pdf<B: Bsdf + ?Sized>(
+    bsdf: &B,
+    ctx: &BsdfContext,
+    wo: Vec3,
+    wi: Vec3,
+) -> Option<BsdfSample> {
+    use crate::math::lanes::V3;
     // `from_pdf` checks the direction too; checked first, it spares a doomed `eval_pdf`.
-    if !(wi.z > 0.0 && wi.is_finite()) {
+    if wi.z == 0.0 || !wi.is_finite() {
         return None;
     }
-    let (value, pdf) = bsdf.eval_pdf(wo, wi);
+    let (value, pdf) = bsdf.eval_pdf(ctx, wo, wi);
     BsdfSampleLanes::<f32>::from_pdf(true, V3::splat(wi), (V3::splat(value), pdf)).lane(0)
 }
 
-/// A BSDF whose `eval_pdf` and `sample` are written over [`Lanes`], once for the scalar methods
-/// (`f32`) and the batch ones: [`eval_pdf_in_lanes`] and [`sample_in_lanes`] run them as its
-/// [`Bsdf::eval_pdf_batch`] and [`Bsdf::sample_batch`], as many lanes wide as the processor
-/// has.
-pub trait BsdfLanes {
-    /// `eval_pdf(wo, wi)` in each lane.
-    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L);
-    /// `sample(wo, u_lobe, (u0, u1))` in each lane.
-    fn sample_lanes<L: Lanes>(&self, wo: V3<L>, u_lobe: L, u: (L, L)) -> BsdfSampleLanes<L>;
+/// The surface that scatters nothing: what a shading point sees of a one-sided BSDF from
+/// behind (Mitsuba's default for its reflecting BSDFs). Its flags are [`BsdfFlags::NONE`].
+pub struct Absorber;
+
+impl Bsdf for Absorber {
+    fn eval(&self, _ctx: &BsdfContext, _wo: Vec3, _wi: Vec3) -> Rgb {
+        Rgb::ZERO
+    }
+
+    fn pdf(&self, _ctx: &BsdfContext, _wo: Vec3, _wi: Vec3) -> f32 {
+        0.0
+    }
+
+    fn sample(&self, _ctx: &BsdfContext, _wo: Vec3, _u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
+        None
+    }
+
+    fn flags(&self) -> BsdfFlags {
+        BsdfFlags::NONE
+    }
 }
 
-/// [`Bsdf::eval_pdf_batch`] for a BSDF written over [`Lanes`]: four or eight pairs at a time
-/// ([`with_widest_lanes`]).
-#[inline(always)]
-pub fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
-    bsdf: &B,
-    wo: &[Vec3],
-    wi: &[Vec3],
-    out: &mut [(Rgb, f32)],
-) {
-    assert!(wi.len() == out.len(), "one result per direction");
-    assert!(
-        wo.len() == 1 || wo.len() == out.len(),
-        "one ωo, or one per direction"
-    );
-    struct EvalPdf<'a, B: ?Sized> {
-        bsdf: &'a B,
-        wo: &'a [Vec3],
-        wi: &'a [Vec3],
-        out: &'a mut [(Rgb, f32)],
-    }
-    impl<B: BsdfLanes + ?Sized> LaneKernel for EvalPdf<'_, B> {
-        type Output = ();
-        #[inline(always)]
-        fn run<L: Lanes, const W: usize>(self) {
-            let EvalPdf { bsdf, wo, wi, out } = self;
-            by_groups::<W, _>(
-                out,
-                #[inline(always)]
-                |k, out| {
-                    let (value, pdf) = bsdf
-                        .eval_pdf_lanes::<L>(V3::gather(wo, k, |wo| wo), V3::from_fn(|i| wi[k[i]]));
-                    for (i, out) in out.iter_mut().enumerate() {
-                        *out = (value.lane(i), pdf.lane(i));
-                    }
-                },
-            );
-        }
-    }
-    with_widest_lanes(EvalPdf { bsdf, wo, wi, out });
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// [`Bsdf::sample_batch`] for a BSDF written over [`Lanes`]: four or eight samples at a time
-/// ([`with_widest_lanes`]).
-#[inline(always)]
-pub fn sample_in_lanes<B: BsdfLanes + ?Sized>(
-    bsdf: &B,
-    wo: &[Vec3],
-    u: &[(f32, Vec2)],
-    out: &mut [Option<BsdfSample>],
-) {
-    assert!(u.len() == out.len(), "one result per sample");
-    assert!(
-        wo.len() == 1 || wo.len() == out.len(),
-        "one ωo, or one per sample"
-    );
-    struct Sample<'a, B: ?Sized> {
-        bsdf: &'a B,
-        wo: &'a [Vec3],
-        u: &'a [(f32, Vec2)],
-        out: &'a mut [Option<BsdfSample>],
+    #[test]
+    fn flags_combine_and_answer_by_kind() {
+        let glass = BsdfFlags::DELTA_REFLECTION | BsdfFlags::DELTA_TRANSMISSION;
+        assert!(glass.is_pure_delta() && glass.transmission() && glass.reflection());
+        assert!(!glass.diffuse() && !glass.glossy() && !glass.is_black());
+        let plastic = BsdfFlags::DELTA_REFLECTION | BsdfFlags::DIFFUSE_REFLECTION;
+        assert!(plastic.delta() && !plastic.is_pure_delta() && !plastic.transmission());
+        assert!(BsdfFlags::NONE.is_black() && !BsdfFlags::NONE.is_pure_delta());
+        let textured = BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::SPATIALLY_VARYING;
+        assert!(textured.spatially_varying() && textured.contains(BsdfFlags::DIFFUSE_REFLECTION));
+        assert!(BsdfFlags::SPATIALLY_VARYING.is_black());
+        assert_eq!(
+            textured & BsdfFlags::REFLECTION,
+            BsdfFlags::DIFFUSE_REFLECTION
+        );
     }
-    impl<B: BsdfLanes + ?Sized> LaneKernel for Sample<'_, B> {
-        type Output = ();
-        #[inline(always)]
-        fn run<L: Lanes, const W: usize>(self) {
-            let Sample { bsdf, wo, u, out } = self;
-            by_groups::<W, _>(
-                out,
-                #[inline(always)]
-                |k, out| {
-                    let u_lobe = L::from_fn(|i| u[k[i]].0);
-                    let u2 = (L::from_fn(|i| u[k[i]].1.x), L::from_fn(|i| u[k[i]].1.y));
-                    let samples = bsdf.sample_lanes(V3::gather(wo, k, |wo| wo), u_lobe, u2);
-                    for (i, out) in out.iter_mut().enumerate() {
-                        *out = samples.lane(i);
-                    }
-                },
-            );
+
+    #[test]
+    fn samples_know_their_side_and_eta() {
+        let up = BsdfSample::new(Vec3::Z, 0.3, Rgb::ONE);
+        assert!(!up.transmission() && !up.delta && up.eta == 1.0);
+        let through = BsdfSample::delta(-Vec3::Z, 0.5, Rgb::ONE).with_eta(1.5);
+        assert!(through.transmission() && through.delta && through.eta == 1.5);
+        assert_eq!(BsdfContext::default(), BsdfContext::FRONT);
+        assert_eq!(
+            BsdfContext::BACK.with_uv(Vec2::X),
+            BsdfContext::new(Vec2::X, Side::Back)
+        );
+    }
+
+    /// `sample_from_pdf` accepts a transmitted direction where the density is positive, and
+    /// refuses the horizon.
+    #[test]
+    fn samples_from_the_pdf_may_transmit() {
+        struct Uniform;
+        impl Bsdf for Uniform {
+            fn eval(&self, _: &BsdfContext, _: Vec3, wi: Vec3) -> Rgb {
+                Rgb::splat(wi.z.abs() / (4.0 * std::f32::consts::PI))
+            }
+            fn pdf(&self, _: &BsdfContext, _: Vec3, _: Vec3) -> f32 {
+                1.0 / (4.0 * std::f32::consts::PI)
+            }
+            fn sample(&self, _: &BsdfContext, _: Vec3, _: f32, _: Vec2) -> Option<BsdfSample> {
+                None
+            }
+            fn flags(&self) -> BsdfFlags {
+                BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::DIFFUSE_TRANSMISSION
+            }
         }
+        let ctx = BsdfContext::FRONT;
+        let down = Vec3::new(0.6, 0.0, -0.8);
+        let s = sample_from_pdf(&Uniform, &ctx, Vec3::Z, down).expect("a sample");
+        assert!(s.transmission() && s.eta == 1.0 && (s.weight.x - 0.8).abs() < 1e-6);
+        assert!(sample_from_pdf(&Uniform, &ctx, Vec3::Z, Vec3::X).is_none());
+        assert!(
+            Absorber.flags().is_black()
+                && Absorber.sample(&ctx, Vec3::Z, 0.5, Vec2::ZERO).is_none()
+        );
     }
-    with_widest_lanes(Sample { bsdf, wo, u, out });
 }

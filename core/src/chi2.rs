@@ -107,6 +107,11 @@ pub struct Chi2Test {
     pub integration_nodes: usize,
     /// The seed of the sampler's stream; [`test_seed`] by default.
     pub seed: u64,
+    /// The normal of a plane through the origin across which the density may jump between two
+    /// positive values (a BSDF's horizon, where reflection meets transmission): integration
+    /// regions that straddle it are refined to the depth limit, as those across the edge of
+    /// the density's support are. [`test_bsdf`] sets the shading normal; `None` by default.
+    pub horizon: Option<Vec3>,
 }
 
 impl Default for Chi2Test {
@@ -119,6 +124,7 @@ impl Default for Chi2Test {
             samples: 1_000_000,
             integration_nodes: 5,
             seed: test_seed(),
+            horizon: None,
         }
     }
 }
@@ -142,17 +148,29 @@ pub struct Chi2Outcome {
     pub phi_bins: usize,
 }
 
-/// Tests a BSDF's `sample` against its `pdf` for the outgoing direction `wo` (local frame).
-/// Delta samples cannot be binned against a density and count as failed samples.
-pub fn test_bsdf(bsdf: &dyn crate::bsdf::Bsdf, wo: Vec3, test: &Chi2Test) -> Chi2Outcome {
+/// Tests a BSDF's `sample` against its `pdf` at the shading point `ctx` for the outgoing
+/// direction `wo` (local frame), over the whole sphere of directions (with the default
+/// `cos_cap`): reflected and transmitted samples alike, the horizon (z = 0) a place where the
+/// density may jump ([`Chi2Test::horizon`], unless the test gives another plane). Delta samples
+/// cannot be binned against a density and count as failed samples.
+pub fn test_bsdf(
+    bsdf: &dyn crate::bsdf::Bsdf,
+    ctx: &crate::bsdf::BsdfContext,
+    wo: Vec3,
+    test: &Chi2Test,
+) -> Chi2Outcome {
+    let test = Chi2Test {
+        horizon: test.horizon.or(Some(Vec3::Z)),
+        ..test.clone()
+    };
     test.run(
         |s| {
             let u_lobe = s.next_1d();
-            bsdf.sample(wo, u_lobe, s.next_2d())
+            bsdf.sample(ctx, wo, u_lobe, s.next_2d())
                 .filter(|b| !b.delta)
                 .map(|b| b.wi)
         },
-        |wi| bsdf.pdf(wo, wi) as f64,
+        |wi| bsdf.pdf(ctx, wo, wi) as f64,
     )
 }
 
@@ -207,12 +225,15 @@ impl Chi2Test {
             observed[i * self.phi_bins + j] += 1.0;
         }
 
-        // Expected counts: adaptive Simpson's rule in (u, φ), where dω = du dφ.
+        // Expected counts: adaptive Simpson's rule in (u, φ), where dω = du dφ. Each node's
+        // density, and its height above the horizon plane (1 without one).
+        let horizon = self.horizon.map(|h| h.as_dvec3());
         let density = |u: f64, phi: f64| {
             let cos = 1.0 - u;
             let sin = (u * (2.0 - u)).max(0.0).sqrt();
             let d = s * (sin * phi.cos()) + t * (sin * phi.sin()) + n * cos;
-            pdf(d.as_vec3()).max(0.0)
+            let height = horizon.map_or(1.0, |h| h.dot(d));
+            (pdf(d.as_vec3()).max(0.0), height)
         };
         let integrator = Simpson2D {
             nodes: (self.integration_nodes.max(3) - 1).next_multiple_of(2) + 1,
@@ -267,17 +288,19 @@ struct Simpson2D {
     max_depth: u32,
 }
 
-/// Simpson's estimate over one region, and the smallest and largest density at its nodes.
+/// Simpson's estimate over one region, the smallest and largest density at its nodes, and
+/// whether its nodes lie on both sides of the horizon.
 struct RegionEstimate {
     integral: f64,
     least: f64,
     most: f64,
+    straddles: bool,
 }
 
 impl Simpson2D {
     fn simpson(
         &self,
-        f: &impl Fn(f64, f64) -> f64,
+        f: &impl Fn(f64, f64) -> (f64, f64),
         origin: [f64; 2],
         size: [f64; 2],
     ) -> RegionEstimate {
@@ -295,26 +318,30 @@ impl Simpson2D {
         // there is read from this region even after directions are rounded to f32.
         let at = |k: usize| (k as f64 / last as f64).clamp(1e-4, 1.0 - 1e-4);
         let (mut sum, mut least, mut most) = (0.0, f64::INFINITY, 0.0f64);
+        let (mut above, mut below) = (false, false);
         for a in 0..=last {
             let x = origin[0] + at(a) * size[0];
             for b in 0..=last {
-                let value = f(x, origin[1] + at(b) * size[1]);
+                let (value, height) = f(x, origin[1] + at(b) * size[1]);
                 sum += weight(a) * weight(b) * value;
                 least = least.min(value);
                 most = most.max(value);
+                above |= height > 0.0;
+                below |= height < 0.0;
             }
         }
         RegionEstimate {
             integral: sum * size[0] * size[1] / (9.0 * (last * last) as f64),
             least,
             most,
+            straddles: above && below,
         }
     }
 
     /// The integral over the rectangle and an estimate of its error.
     fn integrate(
         &self,
-        f: &impl Fn(f64, f64) -> f64,
+        f: &impl Fn(f64, f64) -> (f64, f64),
         origin: [f64; 2],
         size: [f64; 2],
         depth: u32,
@@ -324,25 +351,30 @@ impl Simpson2D {
         let quarters = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
             .map(|[a, b]| [origin[0] + a * half[0], origin[1] + b * half[1]]);
         let (mut parts, mut least, mut most) = (0.0, whole.least, whole.most);
+        let mut straddles = whole.straddles;
         for &o in &quarters {
             let q = self.simpson(f, o, half);
             parts += q.integral;
             least = least.min(q.least);
             most = most.max(q.most);
+            straddles |= q.straddles;
         }
         let difference = (parts - whole.integral).abs();
-        let across_support_edge = least <= 0.0 && most > 0.0;
+        // A jump the nodes may straddle: the edge of the support, or the horizon where a
+        // reflected lobe meets a transmitted one.
+        let across_jump = most > 0.0 && (least <= 0.0 || straddles);
         // Richardson: where the density is smooth, the refined estimate's error is about a
         // fifteenth of the difference.
-        if !across_support_edge && difference / 15.0 <= self.tolerance {
+        if !across_jump && difference / 15.0 <= self.tolerance {
             return (parts, difference / 15.0);
         }
         if depth >= self.max_depth {
             // Unresolved at the depth limit: a jump lies in the region, where Simpson's error
-            // shrinks only in proportion to the region's size. Across the support's edge the
-            // region holds between nothing and its largest density over all of it.
-            let error = if across_support_edge {
-                most * size[0] * size[1]
+            // shrinks only in proportion to the region's size. Across a jump the region holds
+            // between its least and its largest density over all of it (nothing and the
+            // largest, across the support's edge).
+            let error = if across_jump {
+                (most - least.max(0.0)) * size[0] * size[1]
             } else {
                 difference
             };

@@ -1,4 +1,5 @@
-//! Run-time plugin libraries: BSDFs loaded from a shared library named in a scene's `plugins`.
+//! Run-time plugin libraries: BSDFs and textures loaded from a shared library named in a scene's
+//! `plugins`.
 //!
 //! A library is a `cdylib` crate that depends on `lumis-core` and declares its plugins with
 //! [`declare_plugin_library!`](crate::declare_plugin_library), which exports one symbol,
@@ -8,14 +9,29 @@
 //! are never unloaded (their code backs plugin objects for the life of the process). Their
 //! plugins are registered with [`crate::registry::register_bsdfs`].
 
-use crate::registry::BsdfPlugin;
+use crate::registry::{BsdfPlugin, TexturePlugin};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// Version of the plugin interface (the traits, `BsdfPlugin`, `Params`); bumped on any change.
-/// 2: `Bsdf` gained `eval_pdf_batch` and `sample_batch` (a new vtable layout).
-/// 3: `Emitter` gained `own_shape_never_blocks_samples`.
-pub const API_VERSION: u32 = 3;
+/// Each version's change is in [`API_CHANGES`].
+pub const API_VERSION: u32 = 4;
+
+/// What changed in each version of the plugin interface, for the loader's messages.
+pub const API_CHANGES: &[(u32, &str)] = &[
+    (
+        2,
+        "`Bsdf` gained `eval_pdf_batch` and `sample_batch` (a new vtable layout)",
+    ),
+    (3, "`Emitter` gained `own_shape_never_blocks_samples`"),
+    (
+        4,
+        "every `Bsdf` method takes the shading point's `BsdfContext` (uv, side), `BsdfFlags` is \
+         a set of bits with transmission, `BsdfSample` carries η, `BsdfLanes` takes per-lane \
+         contexts and parameters, `Params` builds textures and nested BSDFs, and libraries may \
+         declare texture plugins",
+    ),
+];
 
 /// The rustc that built this copy of lumis-core.
 pub const RUSTC_VERSION: &str = env!("LUMIS_RUSTC_VERSION");
@@ -24,23 +40,29 @@ pub const RUSTC_VERSION: &str = env!("LUMIS_RUSTC_VERSION");
 pub const DECLARATION_SYMBOL: &[u8] = b"LUMIS_PLUGIN_DECLARATION\0";
 
 /// What a plugin library exports. The first three fields have a C layout and are checked before
-/// `bsdfs`, whose layout is Rust's, is read.
+/// the plugin lists, whose layout is Rust's, are read.
 #[repr(C)]
 pub struct PluginDeclaration {
     pub api_version: u32,
     pub rustc_version: *const u8,
     pub rustc_version_len: usize,
     pub bsdfs: &'static [BsdfPlugin],
+    pub textures: &'static [TexturePlugin],
 }
 
 // The declaration is immutable static data.
 unsafe impl Sync for PluginDeclaration {}
 
 /// Declares the plugins of a run-time library:
-/// `lumis_core::declare_plugin_library!(bsdfs: [MY_BSDF]);` with `MY_BSDF` a `BsdfPlugin`.
+/// `lumis_core::declare_plugin_library!(bsdfs: [MY_BSDF]);` with `MY_BSDF` a `BsdfPlugin`, or
+/// `lumis_core::declare_plugin_library!(bsdfs: [MY_BSDF], textures: [MY_TEXTURE]);` with
+/// `MY_TEXTURE` a `TexturePlugin`.
 #[macro_export]
 macro_rules! declare_plugin_library {
     (bsdfs: [$($plugin:expr),* $(,)?]) => {
+        $crate::declare_plugin_library!(bsdfs: [$($plugin),*], textures: []);
+    };
+    (bsdfs: [$($plugin:expr),* $(,)?], textures: [$($texture:expr),* $(,)?]) => {
         #[unsafe(no_mangle)]
         pub static LUMIS_PLUGIN_DECLARATION: $crate::dylib::PluginDeclaration =
             $crate::dylib::PluginDeclaration {
@@ -48,6 +70,7 @@ macro_rules! declare_plugin_library {
                 rustc_version: $crate::dylib::RUSTC_VERSION.as_ptr(),
                 rustc_version_len: $crate::dylib::RUSTC_VERSION.len(),
                 bsdfs: &[$($plugin),*],
+                textures: &[$($texture),*],
             };
     };
 }
@@ -57,8 +80,18 @@ static LIBRARIES: Mutex<Vec<(PathBuf, libloading::Library)>> = Mutex::new(Vec::n
 /// Checks a declaration's versions against this program's.
 pub fn check_versions(api_version: u32, rustc_version: &str) -> Result<(), String> {
     if api_version != API_VERSION {
+        let changes: Vec<String> = API_CHANGES
+            .iter()
+            .filter(|(version, _)| *version > api_version && *version <= API_VERSION)
+            .map(|(version, change)| format!("version {version}: {change}"))
+            .collect();
+        let since = if changes.is_empty() {
+            String::new()
+        } else {
+            format!(" (since then, {})", changes.join("; "))
+        };
         return Err(format!(
-            "built for plugin API version {api_version}, but this lumis has version {API_VERSION}: rebuild it against this lumis-core"
+            "built for plugin API version {api_version}, but this lumis has version {API_VERSION}{since}: rebuild it against this lumis-core"
         ));
     }
     if rustc_version != RUSTC_VERSION {
@@ -103,6 +136,7 @@ pub fn load_library(path: &Path) -> Result<(), String> {
     };
     check_versions(declaration.api_version, &String::from_utf8_lossy(rustc))?;
     crate::registry::register_bsdfs(declaration.bsdfs)?;
+    crate::registry::register_textures(declaration.textures)?;
     libraries.push((canonical, library));
     Ok(())
 }
@@ -118,6 +152,14 @@ mod tests {
         assert!(
             e.contains(&format!("API version {}", API_VERSION + 1))
                 && e.contains(&format!("has version {API_VERSION}")),
+            "{e}"
+        );
+        // A library of the previous interface is told what changed.
+        let e = check_versions(3, RUSTC_VERSION).unwrap_err();
+        assert!(
+            e.contains("API version 3, but this lumis has version 4")
+                && e.contains("`BsdfContext`")
+                && e.contains("rebuild it"),
             "{e}"
         );
         let e = check_versions(API_VERSION, "rustc 1.0.0 (a28077b28 2015-05-13)").unwrap_err();

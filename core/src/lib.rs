@@ -25,5 +25,7 @@ pub mod render;
 pub mod render_files;
 pub mod sampler;
 pub mod scene;
+pub mod testing;
+pub mod texture;
 
 pub use inventory;

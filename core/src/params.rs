@@ -5,16 +5,23 @@
 //! against it, defaults come from it, and the scene builder refuses parameters it does not name,
 //! values of the wrong type or out of range, and parameters a plugin was given but did not use.
 
+use crate::bsdf::{Bsdf, BsdfFlags};
 use crate::error::did_you_mean;
 use crate::limits::{MAX_COORDINATE, fmt_f32, fmt_number};
+use crate::texture::Texture;
 use glam::Vec3;
 use ron::Value;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use std::sync::Arc;
+
+mod nested;
 
 /// The type of a parameter, with its default (`None`: the parameter is required) and range.
 #[derive(Clone, Copy, Debug)]
+#[non_exhaustive]
 pub enum ParamKind {
     Float {
         default: Option<f32>,
@@ -58,6 +65,28 @@ pub enum ParamKind {
         options: &'static [&'static str],
         default: &'static str,
     },
+    /// A colour as [`ParamKind::Rgb`], or a texture written inline,
+    /// `(type: "checkerboard", ...)`, whose values must lie in [0, max] too. Read with
+    /// [`Params::rgb_or_texture`].
+    RgbOrTexture {
+        default: Option<[f32; 3]>,
+        max: f32,
+    },
+    /// A number as [`ParamKind::Float`], or a texture written inline (its `eval_1`), whose
+    /// values must lie in [min, max] too. Read with [`Params::float_or_texture`].
+    FloatOrTexture {
+        default: Option<f32>,
+        min: f32,
+        max: f32,
+    },
+    /// Another BSDF: the name of one of the scene's `bsdfs`, or one written inline,
+    /// `(type: "diffuse", ...)`. Required. Read with [`Params::bsdf`].
+    Bsdf,
+    /// A 2D affine map of texture coordinates: `(scale: (sx, sy), rotate: degrees,
+    /// translate: (tx, ty))` (each optional, applied in that order; `scale` may be one number)
+    /// or `(matrix: (a, b, c, d, e, f))`, the rows of (u, v) ↦ (a u + b v + c, d u + e v + f).
+    /// The identity by default. Read with [`Params::uv_transform`].
+    UvTransform,
 }
 
 /// One declared parameter of a plugin.
@@ -84,6 +113,10 @@ impl ParamSpec {
             ParamKind::Path => "path",
             ParamKind::List { .. } => "list",
             ParamKind::Choice { .. } => "choice",
+            ParamKind::RgbOrTexture { .. } => "rgb or texture",
+            ParamKind::FloatOrTexture { .. } => "float or texture",
+            ParamKind::Bsdf => "bsdf",
+            ParamKind::UvTransform => "uv transform",
         }
     }
 
@@ -93,6 +126,9 @@ impl ParamSpec {
         match self.kind {
             ParamKind::Float {
                 default: Some(v), ..
+            }
+            | ParamKind::FloatOrTexture {
+                default: Some(v), ..
             } => format!("{v}"),
             ParamKind::Int {
                 default: Some(v), ..
@@ -101,7 +137,11 @@ impl ParamSpec {
             ParamKind::Rgb {
                 default: Some(v), ..
             }
+            | ParamKind::RgbOrTexture {
+                default: Some(v), ..
+            }
             | ParamKind::Vec3 { default: Some(v) } => triple(v),
+            ParamKind::UvTransform => "identity".to_string(),
             ParamKind::Interval { default, .. } => format!("({}, {})", default[0], default[1]),
             ParamKind::Str { default: Some(v) } => format!("{v:?}"),
             ParamKind::Choice { default, .. } => format!("{default:?}"),
@@ -114,7 +154,9 @@ impl ParamSpec {
     pub fn range_text(&self) -> String {
         let number = fmt_f32;
         match self.kind {
-            ParamKind::Float { min, max, .. } | ParamKind::Interval { min, max, .. } => {
+            ParamKind::Float { min, max, .. }
+            | ParamKind::FloatOrTexture { min, max, .. }
+            | ParamKind::Interval { min, max, .. } => {
                 let hi = if max.is_infinite() {
                     "∞)".to_string()
                 } else {
@@ -123,10 +165,12 @@ impl ParamSpec {
                 format!("[{}, {hi}", number(min))
             }
             ParamKind::Int { min, max, .. } => format!("[{min}, {max}]"),
-            ParamKind::Rgb { max, .. } if max.is_finite() => {
+            ParamKind::Rgb { max, .. } | ParamKind::RgbOrTexture { max, .. } if max.is_finite() => {
                 format!("[0, {}] per channel", number(max))
             }
-            ParamKind::Rgb { .. } => "finite, non-negative per channel".into(),
+            ParamKind::Rgb { .. } | ParamKind::RgbOrTexture { .. } => {
+                "finite, non-negative per channel".into()
+            }
             ParamKind::Vec3 { .. } => format!("[-{0}, {0}] per component", number(MAX_COORDINATE)),
             ParamKind::Choice { options, .. } => options.join(" | "),
             ParamKind::List { options } => format!("any of {}", options.join(", ")),
@@ -183,6 +227,29 @@ pub struct Params {
     used: Vec<String>,
     /// Directory that relative paths are resolved against (the scene file's).
     base_dir: PathBuf,
+    /// Builds the textures and BSDFs the parameters name ([`References`]); none: a parameter
+    /// that names one is refused.
+    references: Option<Rc<dyn References>>,
+    /// Whether a texture was handed out (here or to a nested BSDF): the plugin varies over the
+    /// surface.
+    textured: bool,
+}
+
+/// What builds the plugins that parameters refer to: textures written inline, and BSDFs
+/// written inline or named from the scene's `bsdfs` (the scene loader's
+/// `scene::references::SceneReferences`). Errors are sentences naming the problem; the reader
+/// adds the parameter and its plugin.
+pub trait References {
+    /// The texture written inline as `value` (a plugin description), for the parameter
+    /// described by `label`.
+    fn texture(self: Rc<Self>, label: &str, value: &Value) -> Result<Arc<dyn Texture>, String>;
+    /// The BSDF `value` names (a string) or describes inline, for the parameter described by
+    /// `label`, with its flags ([`BsdfFlags::SPATIALLY_VARYING`] where it was given a texture).
+    fn bsdf(
+        self: Rc<Self>,
+        label: &str,
+        value: &Value,
+    ) -> Result<(Arc<dyn Bsdf>, BsdfFlags), String>;
 }
 
 /// A short description of a RON value, for "found ..." messages.
@@ -270,7 +337,26 @@ impl Params {
             values,
             used: Vec::new(),
             base_dir: PathBuf::new(),
+            references: None,
+            textured: false,
         })
+    }
+
+    /// Builds the textures and BSDFs the parameters refer to with `references`.
+    pub fn with_references(mut self, references: Rc<dyn References>) -> Self {
+        self.references = Some(references);
+        self
+    }
+
+    /// The directory relative paths are resolved against.
+    pub fn base_dir(&self) -> &Path {
+        &self.base_dir
+    }
+
+    /// Whether a texture was handed out to the plugin, or to a BSDF nested in it: the plugin
+    /// varies over the surface.
+    pub fn uses_textures(&self) -> bool {
+        self.textured
     }
 
     /// Resolves relative `path` parameters against `dir` (the scene file's directory).
@@ -356,13 +442,24 @@ impl Params {
 
     pub fn float(&mut self, name: &str) -> Result<f32, PluginError> {
         let (spec, value) = self.take(name);
-        let value = value.as_ref();
         let ParamKind::Float { default, min, max } = spec.kind else {
             panic!("parameter `{name}` is not declared as a float");
         };
+        self.float_value(spec, value.as_ref(), default, [min, max], "a number")
+    }
+
+    /// The number `value` (or `default`) of parameter `spec`, in [min, max].
+    fn float_value(
+        &self,
+        spec: &'static ParamSpec,
+        value: Option<&Value>,
+        default: Option<f32>,
+        [min, max]: [f32; 2],
+        expected: &str,
+    ) -> Result<f32, PluginError> {
         let v = match value {
-            None => default.ok_or_else(|| self.missing(spec, "a number"))? as f64,
-            Some(v) => as_number(v).ok_or_else(|| self.wrong_type(name, "a number", v))?,
+            None => default.ok_or_else(|| self.missing(spec, expected))? as f64,
+            Some(v) => as_number(v).ok_or_else(|| self.wrong_type(spec.name, expected, v))?,
         };
         if !in_range(v, min, max) {
             return Err(self.bad_number(spec, &[v]));
@@ -413,19 +510,36 @@ impl Params {
     /// A linear RGB colour, each channel finite and in [0, max].
     pub fn rgb(&mut self, name: &str) -> Result<Vec3, PluginError> {
         let (spec, value) = self.take(name);
-        let value = value.as_ref();
         let ParamKind::Rgb { default, max } = spec.kind else {
             panic!("parameter `{name}` is not declared as rgb");
         };
-        const EXPECTED: &str = "an RGB triple (r, g, b) or one number";
+        self.rgb_value(
+            spec,
+            value.as_ref(),
+            default,
+            max,
+            "an RGB triple (r, g, b) or one number",
+        )
+    }
+
+    /// The colour `value` (or `default`) of parameter `spec`, each channel in [0, max].
+    fn rgb_value(
+        &self,
+        spec: &'static ParamSpec,
+        value: Option<&Value>,
+        default: Option<[f32; 3]>,
+        max: f32,
+        expected: &str,
+    ) -> Result<Vec3, PluginError> {
+        let name = spec.name;
         let c = match value {
             None => default
-                .ok_or_else(|| self.missing(spec, EXPECTED))?
+                .ok_or_else(|| self.missing(spec, expected))?
                 .map(f64::from),
             Some(v) => match (as_number(v), as_triple(v)) {
                 (Some(grey), _) => [grey; 3],
                 (_, Some(t)) => t,
-                _ => return Err(self.wrong_type(name, EXPECTED, v)),
+                _ => return Err(self.wrong_type(name, expected, v)),
             },
         };
         if c.iter().any(|&x| !in_range(x, 0.0, max)) {

@@ -16,7 +16,9 @@ use lumis_core::image_io::Metadata;
 use lumis_core::params::ParamSpec;
 use lumis_core::passes::{History, Request, Settings};
 use lumis_core::progressive::{Control, RenderState, Scope};
-use lumis_core::registry::{self, BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo};
+use lumis_core::registry::{
+    self, BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, TexturePlugin,
+};
 use lumis_core::render::RenderStats;
 use lumis_core::scene::description::{PluginSpec, SceneDescription};
 use lumis_core::{render_files, scene};
@@ -920,13 +922,14 @@ fn plugins_of<'py, P: PluginInfo + lumis_core::inventory::Collect>(
     Ok(())
 }
 
-/// Every registered plugin (BSDFs, emitters, integrators) with its parameters.
+/// Every registered plugin (BSDFs, emitters, textures, integrators) with its parameters.
 #[pyfunction]
 fn plugins(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     guarded(|| {
         let list = PyList::empty(py);
         plugins_of::<BsdfPlugin>(py, &list)?;
         plugins_of::<EmitterPlugin>(py, &list)?;
+        plugins_of::<TexturePlugin>(py, &list)?;
         plugins_of::<IntegratorPlugin>(py, &list)?;
         Ok(list)
     })
@@ -938,6 +941,7 @@ fn _lumis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     lumis_bsdfs::link();
     lumis_emitters::link();
     lumis_integrators::link();
+    lumis::textures::link();
     let py = m.py();
     m.add("LumisError", py.get_type::<LumisError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;

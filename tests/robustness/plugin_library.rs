@@ -41,6 +41,7 @@ fn a_scene_renders_with_a_bsdf_from_a_plugin_library() {
 
 #[test]
 fn plugin_library_bsdf_passes_the_chi_square_test() {
+    use lumis::bsdf::BsdfContext;
     use lumis::chi2::{Chi2Test, sidak, test_bsdf};
     use lumis::registry::{BsdfPlugin, find};
     lumis::link_plugins();
@@ -53,7 +54,7 @@ fn plugin_library_bsdf_passes_the_chi_square_test() {
     let cases = [1.0f32, 0.7, 1e-3];
     for cos in cases {
         let wo = glam::Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
-        test_bsdf(bsdf.as_ref(), wo, &Chi2Test::default())
+        test_bsdf(bsdf.as_ref(), &BsdfContext::FRONT, wo, &Chi2Test::default())
             .assert_passes(sidak(0.01, cases.len()), &format!("oren_nayar cos={cos}"));
         // Loading the same library again is a no-op, not a duplicate registration.
         lumis::dylib::load_library(example_library()).unwrap();

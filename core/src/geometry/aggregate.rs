@@ -9,9 +9,10 @@ use super::primitive::Primitive;
 use super::ray::{Intersection, Ray, read_coordinates};
 use super::shapes::{ShapeGeometry, unit_normal_a, unit_normals_a};
 use super::triangle::RayShear;
+use super::uv::UvMapping;
 use crate::limits::MAX_COORDINATE;
 use crate::math::gamma;
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
@@ -53,13 +54,15 @@ pub const BVH_BYTES_PER_PRIMITIVE: u64 = 320;
 
 /// The scene's surfaces and the BVH over them.
 pub struct Geometry {
-    shapes: Vec<ShapeGeometry>,
+    pub(super) shapes: Vec<ShapeGeometry>,
     /// Primitives in BVH leaf order.
     primitives: Vec<Primitive>,
     bvh: WideBvh,
     /// Per shape: its bounding box, padded for [`Geometry::may_meet`] (empty for a shape with no
     /// primitive).
     shape_boxes: Vec<[Vec3; 2]>,
+    /// Per shape: how its points map to texture coordinates ([`Geometry::uv`]).
+    pub(super) uv_mappings: Vec<UvMapping>,
 }
 
 /// Size (largest extent) the scene has in the BVH's space, a power of two.
@@ -139,6 +142,7 @@ impl Geometry {
         let mut primitives = crate::huge_pages::vec_with_capacity(order.len());
         primitives.par_extend(order.par_iter().map(|&i| prims[i as usize]));
         Geometry {
+            uv_mappings: vec![UvMapping::Intrinsic; shapes.len()],
             shapes,
             primitives,
             bvh,
@@ -472,6 +476,29 @@ impl Geometry {
                 counts(primitive) && primitive.hit(ray, &shear, ray.t_max).is_some()
             },
         )
+    }
+}
+
+impl Geometry {
+    /// The shapes' texture coordinate mappings, one per shape (all [`UvMapping::Intrinsic`]
+    /// unless set).
+    ///
+    /// # Panics
+    /// If there is not one per shape.
+    pub fn with_uv_mappings(mut self, mappings: Vec<UvMapping>) -> Self {
+        assert_eq!(
+            mappings.len(),
+            self.shapes.len(),
+            "one UV mapping per shape"
+        );
+        self.uv_mappings = mappings;
+        self
+    }
+
+    /// The texture coordinates of the surface point `hit` (a hit of this geometry), finite.
+    pub fn uv(&self, hit: &Intersection) -> Vec2 {
+        let shape = hit.shape as usize;
+        self.uv_mappings[shape].uv(&self.shapes[shape], hit)
     }
 }
 

@@ -10,6 +10,7 @@
 //! - `bvh`: the 8-wide BVH (its build, node tests and traversals).
 //! - `may_meet`: the padded-box test of queries about one shape.
 //! - `aggregate`: [`Geometry`], the surfaces with the BVH over them, and its queries.
+//! - `uv`: texture coordinates of surface points ([`Geometry::uv`], [`UvMapping`]).
 //!
 //! The files are private: what plugins and the scene loader use is re-exported here, so that
 //! the files can be split or merged without changing a plugin's imports.
@@ -23,6 +24,7 @@ mod ray;
 mod shapes;
 mod sphere;
 mod triangle;
+mod uv;
 
 pub use aggregate::{BVH_BYTES_PER_PRIMITIVE, FirstHit, Geometry, take_ray_count};
 /// Most rays [`Geometry::intersect_packet`] traces as one packet.
@@ -30,3 +32,4 @@ pub use bvh::PACKET_SIZE;
 pub use ray::{Intersection, Ray, RayOrigin, SHADOW_EPSILON, offset_ray_origin};
 pub use shapes::{Mesh, ShapeGeometry, Sphere, cube, disk, rectangle, unit_normal};
 pub use triangle::ray_meets_triangle;
+pub use uv::UvMapping;

@@ -2,7 +2,7 @@
 
 use crate::limits::MAX_COORDINATE;
 use crate::math::lanes::{LaneKernel, Lanes, V3, with_widest_lanes};
-use glam::{DMat3, Mat4, Vec3, Vec3A};
+use glam::{DMat3, Mat4, Vec2, Vec3, Vec3A};
 use std::f32::consts::TAU;
 
 /// A triangle mesh in world space.
@@ -13,6 +13,9 @@ pub struct Mesh {
     pub normals: Option<Vec<Vec3>>,
     /// Counter-clockwise triangles: the geometric normal is (p1 − p0) × (p2 − p0).
     pub indices: Vec<[u32; 3]>,
+    /// Per-vertex texture coordinates, when the source has them (glTF `TEXCOORD_0`, OBJ `vt`
+    /// with v turned as Mitsuba turns it, PLY `u`/`v`, `s`/`t` or `texture_u`/`texture_v`).
+    pub uvs: Option<Vec<Vec2>>,
 }
 
 /// A sphere in world space; its normal points outward.
@@ -91,15 +94,13 @@ impl Mesh {
         self
     }
 
-    /// Appends another mesh (used to merge the nodes of one glTF shape).
+    /// Appends another mesh (used to merge the nodes of one glTF shape). Normals and texture
+    /// coordinates are kept where both meshes have them.
     pub fn append(&mut self, other: Mesh) {
         let offset = self.positions.len() as u32;
-        let normals_kept = self.normals.is_some() || self.positions.is_empty();
-        match (&mut self.normals, other.normals) {
-            (Some(a), Some(b)) if normals_kept => a.extend(b),
-            (None, Some(b)) if self.positions.is_empty() => self.normals = Some(b),
-            _ => self.normals = None,
-        }
+        let empty = self.positions.is_empty();
+        merge_attribute(&mut self.normals, other.normals, empty);
+        merge_attribute(&mut self.uvs, other.uvs, empty);
         self.positions.extend(other.positions);
         self.indices.extend(
             other
@@ -129,6 +130,16 @@ impl Mesh {
     pub fn triangle_normal(&self, i: usize) -> Vec3 {
         let [a, b, c] = self.triangle(i);
         unit_normal((b - a).cross(c - a))
+    }
+}
+
+/// A vertex attribute of a mesh (`kept`, `empty` if it has no vertex yet) after another's
+/// (`other`) is appended: kept only if both have it.
+fn merge_attribute<T>(kept: &mut Option<Vec<T>>, other: Option<Vec<T>>, empty: bool) {
+    match (kept.as_mut(), other) {
+        (Some(a), Some(b)) => a.extend(b),
+        (None, Some(b)) if empty => *kept = Some(b),
+        _ => *kept = None,
     }
 }
 
@@ -198,21 +209,33 @@ fn max_ignoring_nan<L: Lanes>(a: L, b: L) -> L {
     L::select(b.eq(b), a.max(b), a)
 }
 
-/// The square [−1, 1]² in the z = 0 plane, facing +z.
+/// The square [−1, 1]² in the z = 0 plane, facing +z, with Mitsuba's `rectangle` texture
+/// coordinates: ((x + 1)/2, (y + 1)/2).
 pub fn rectangle() -> Mesh {
+    let positions = vec![
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0),
+    ];
     Mesh {
-        positions: vec![
-            Vec3::new(-1.0, -1.0, 0.0),
-            Vec3::new(1.0, -1.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(-1.0, 1.0, 0.0),
-        ],
+        uvs: Some(
+            positions
+                .iter()
+                .map(|p| (p.truncate() + 1.0) / 2.0)
+                .collect(),
+        ),
+        positions,
         normals: Some(vec![Vec3::Z; 4]),
         indices: vec![[0, 1, 2], [0, 2, 3]],
     }
 }
 
-/// The unit disk in the z = 0 plane, facing +z, as a fan of `segments` triangles.
+/// The unit disk in the z = 0 plane, facing +z, as a fan of `segments` triangles. Its texture
+/// coordinates are not per vertex: Mitsuba's polar (r, φ/2π) of a point of the disk is not
+/// linear over a triangle of the fan, so the scene gives a disk a [`UvMapping::Polar`].
+///
+/// [`UvMapping::Polar`]: super::UvMapping::Polar
 pub fn disk(segments: u32) -> Mesh {
     let mut positions = vec![Vec3::ZERO];
     positions.extend((0..segments).map(|i| {
@@ -226,15 +249,18 @@ pub fn disk(segments: u32) -> Mesh {
         normals: Some(vec![Vec3::Z; positions.len()]),
         positions,
         indices,
+        uvs: None,
     }
 }
 
-/// The cube [−1, 1]³ with outward faces and flat normals.
+/// The cube [−1, 1]³ with outward faces and flat normals, each face mapped onto [0, 1]² in
+/// texture space as Mitsuba's `cube` maps it ([`cube_face_uv`]).
 pub fn cube() -> Mesh {
     let mut mesh = Mesh {
         positions: vec![],
         normals: Some(vec![]),
         indices: vec![],
+        uvs: Some(vec![]),
     };
     for axis in 0..3 {
         for sign in [-1.0f32, 1.0] {
@@ -246,7 +272,11 @@ pub fn cube() -> Mesh {
             let v = n.cross(u);
             let base = mesh.positions.len() as u32;
             for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                mesh.positions.push(n + u * a + v * b);
+                let p = n + u * a + v * b;
+                mesh.positions.push(p);
+                if let Some(uvs) = &mut mesh.uvs {
+                    uvs.push(cube_face_uv(n, p));
+                }
             }
             if let Some(normals) = &mut mesh.normals {
                 normals.extend([n; 4]);
@@ -256,6 +286,21 @@ pub fn cube() -> Mesh {
         }
     }
     mesh
+}
+
+/// The texture coordinates Mitsuba 3's `cube` gives point `p` of its face of outward normal
+/// `n` (an axis): each face is [0, 1]², turned as Mitsuba's vertex table turns it (found by
+/// intersecting its cube, `cube_uv_is_mitsubas` has the values).
+fn cube_face_uv(n: Vec3, p: Vec3) -> Vec2 {
+    let (x, y, z) = ((p.x + 1.0) / 2.0, (p.y + 1.0) / 2.0, (p.z + 1.0) / 2.0);
+    match (n.x, n.y, n.z) {
+        (_, -1.0, _) => Vec2::new(z, x),
+        (_, 1.0, _) => Vec2::new(1.0 - x, 1.0 - z),
+        (1.0, _, _) => Vec2::new(y, 1.0 - z),
+        (-1.0, _, _) => Vec2::new(y, z),
+        (_, _, 1.0) => Vec2::new(y, x),
+        _ => Vec2::new(1.0 - y, x),
+    }
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 //! with [`Lanes::select`]. Sine, cosine, arc tangent and arc cosine are polynomials in the same
 //! operations (libm's functions have no SIMD form that rounds as they do, and cost more).
 
-use glam::{BVec4A, Vec3, Vec4};
+use glam::{BVec4A, Vec2, Vec3, Vec4};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -505,6 +505,52 @@ impl<L: Lanes> Div<L> for V3<L> {
     #[inline(always)]
     fn div(self, rhs: L) -> Self {
         V3::new(self.x / rhs, self.y / rhs, self.z / rhs)
+    }
+}
+
+/// A 2-vector of lanes (structure of arrays): the texture coordinates (u, v) of one point or of
+/// several.
+#[derive(Clone, Copy, Debug)]
+pub struct V2<L> {
+    pub x: L,
+    pub y: L,
+}
+
+impl<L: Lanes> V2<L> {
+    #[inline(always)]
+    pub fn new(x: L, y: L) -> Self {
+        V2 { x, y }
+    }
+
+    /// `v` in every lane.
+    #[inline(always)]
+    pub fn splat(v: Vec2) -> Self {
+        V2::new(L::splat(v.x), L::splat(v.y))
+    }
+
+    /// The vector whose lane `i` is `f(i)`.
+    #[inline(always)]
+    pub fn from_fn(mut f: impl FnMut(usize) -> Vec2) -> Self {
+        let mut lanes = [Vec2::ZERO; MAX_WIDTH];
+        for (i, lane) in lanes.iter_mut().enumerate().take(L::WIDTH) {
+            *lane = f(i);
+        }
+        V2::new(L::from_fn(|i| lanes[i].x), L::from_fn(|i| lanes[i].y))
+    }
+
+    /// Lane `i`.
+    #[inline(always)]
+    pub fn lane(self, i: usize) -> Vec2 {
+        Vec2::new(self.x.lane(i), self.y.lane(i))
+    }
+
+    /// Lane by lane, `if_true` where `mask` is set.
+    #[inline(always)]
+    pub fn select(mask: L::Mask, if_true: Self, if_false: Self) -> Self {
+        V2::new(
+            L::select(mask, if_true.x, if_false.x),
+            L::select(mask, if_true.y, if_false.y),
+        )
     }
 }
 

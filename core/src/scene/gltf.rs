@@ -1,10 +1,11 @@
 //! glTF 2.0 import (`.gltf` with external or embedded buffers, and `.glb`): triangle meshes with
-//! node transforms and, when present, vertex normals. Textures and materials are not read:
-//! materials come from the scene file, and no scene uses textures.
+//! node transforms and, when present, vertex normals and texture coordinates (`TEXCOORD_0`).
+//! Textures and materials are not read here: materials come from the scene file (or
+//! `gltf_scene`'s mapping of the file's materials).
 
 use crate::geometry::Mesh;
 use base64::Engine;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use gltf::mesh::Mode;
 use std::path::Path;
 
@@ -312,6 +313,11 @@ fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Vec<(Option<usize>, 
             .map(|it| it.map(|n| Vec3::from(n).normalize_or_zero()).collect());
         let normals =
             normals.filter(|n| n.len() == positions.len() && n.iter().all(|v| v.is_finite()));
+        // TEXCOORD_0 as written: glTF's v runs down the image, as Mitsuba's does.
+        let uvs: Option<Vec<Vec2>> = reader
+            .read_tex_coords(0)
+            .map(|it| it.into_f32().map(Vec2::from).collect());
+        let uvs = uvs.filter(|t| t.len() == positions.len() && t.iter().all(|v| v.is_finite()));
         let indices: Vec<u32> = match prim.indices() {
             Some(acc) if acc.count() == 0 => Vec::new(),
             Some(_) => reader
@@ -362,8 +368,47 @@ fn read_mesh(m: &gltf::Mesh, buffers: &[Vec<u8>]) -> Result<Vec<(Option<usize>, 
                 positions,
                 normals,
                 indices: triangles,
+                uvs,
             },
         ));
     }
     Ok(parts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One triangle with `TEXCOORD_0` (f32), in a buffer embedded as a data URI.
+    fn triangle_with_uvs(uvs: [[f32; 2]; 3]) -> String {
+        let mut bin = Vec::new();
+        for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+            bin.extend(p.iter().flat_map(|x| x.to_le_bytes()));
+        }
+        for uv in uvs {
+            bin.extend(uv.iter().flat_map(|x| x.to_le_bytes()));
+        }
+        let data = base64::engine::general_purpose::STANDARD.encode(&bin);
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}}}}]}}],
+            "buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{data}"}}],
+            "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":24}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+                {{"bufferView":1,"componentType":5126,"count":3,"type":"VEC2"}}]}}"#,
+            len = bin.len()
+        )
+    }
+
+    /// `TEXCOORD_0` is kept as written (glTF's v already runs down the image, as Mitsuba's);
+    /// coordinates that are not finite are dropped, not an error.
+    #[test]
+    fn texture_coordinates_are_kept_as_written() {
+        let uvs = [[0.0, 1.0], [1.0, 1.0], [0.25, 0.0]];
+        let mesh = load_bytes(triangle_with_uvs(uvs).as_bytes(), Path::new("."), None).unwrap();
+        assert_eq!(mesh.uvs.unwrap(), uvs.map(Vec2::from));
+        let nan = [[0.0, f32::NAN], [1.0, 1.0], [0.25, 0.0]];
+        let mesh = load_bytes(triangle_with_uvs(nan).as_bytes(), Path::new("."), None).unwrap();
+        assert_eq!(mesh.uvs, None);
+    }
 }

@@ -4,16 +4,17 @@
 //! The check follows the paths the renderer's integrators sample, all of which end after one
 //! bounce (direct lighting): camera rays through a grid of pixel centres over the rendered
 //! window, and at each point they hit, a few light samples of every emitter (lit, facing, and
-//! unoccluded toward a BSDF that reflects there) and a few BSDF samples (reaching an emitter
+//! unoccluded toward a BSDF that reflects or transmits there) and a few BSDF samples (reaching an emitter
 //! or an environment that is not black). The first such path ends the check; a scene where none
 //! is found gets a warning. It is a sample, so a light seen through a handful of pixels only can
 //! be missed (the warning says "likely"); its cost is bounded by [`MAX_PROBE_RAYS`].
 
 use super::Scene;
+use crate::bsdf::{BsdfContext, Side};
 use crate::emitter::{EmitterHit, ReferencePoint};
 use crate::geometry::{Intersection, Ray};
 use crate::math::{Frame, Rgb};
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 /// Largest number of rays the check traces (about 0.1 s on one core).
 pub const MAX_PROBE_RAYS: usize = 1 << 19;
@@ -73,15 +74,28 @@ fn light_along(scene: &Scene, ray: &Ray) -> bool {
         return false;
     };
     let wo_world = -ray.direction;
-    let sign = if hit.geometric_normal.dot(wo_world) < 0.0 {
-        -1.0
+    let back = hit.geometric_normal.dot(wo_world) < 0.0;
+    let (sign, side) = if back {
+        (-1.0, Side::Back)
     } else {
-        1.0
+        (1.0, Side::Front)
     };
     let frame = Frame::from_normal(sign * hit.shading_normal);
     let normal = sign * hit.geometric_normal;
     let wo = frame.to_local(wo_world);
-    let bsdf = scene.bsdf(&hit);
+    let (bsdf, flags) = scene.bsdf_seen_from(&hit, side);
+    let uv = if flags.spatially_varying() {
+        scene.geometry.uv(&hit)
+    } else {
+        Vec2::ZERO
+    };
+    let ctx = BsdfContext::new(uv, side);
+    // As the shading point: ωi must leave on the side of the geometric surface its local z
+    // says (the viewer's for reflection, the far one for transmission).
+    let consistent = |wi: Vec3, local: Vec3| {
+        let height = normal.dot(wi);
+        (height > 0.0 && local.z > 0.0) || (height < 0.0 && local.z < 0.0)
+    };
     let reference = ReferencePoint {
         position: hit.position,
     };
@@ -90,10 +104,11 @@ fn light_along(scene: &Scene, ray: &Ray) -> bool {
             let Some(sample) = emitter.sample_direction(&reference, u) else {
                 continue;
             };
-            if !nonzero(sample.radiance) || normal.dot(sample.wi) <= 0.0 {
+            let local = frame.to_local(sample.wi);
+            if !nonzero(sample.radiance) || !consistent(sample.wi, local) {
                 continue;
             }
-            if !nonzero(bsdf.eval(wo, frame.to_local(sample.wi))) {
+            if !nonzero(bsdf.eval(&ctx, wo, local)) {
                 continue;
             }
             let shadow = match sample.position {
@@ -107,11 +122,11 @@ fn light_along(scene: &Scene, ray: &Ray) -> bool {
     }
     for (k, u) in square_samples().into_iter().enumerate() {
         let u_lobe = (k as f32 + 0.5) / SAMPLES as f32;
-        let Some(s) = bsdf.sample(wo, u_lobe, u) else {
+        let Some(s) = bsdf.sample(&ctx, wo, u_lobe, u) else {
             continue;
         };
         let wi = frame.to_world(s.wi);
-        if normal.dot(wi) <= 0.0 || !nonzero(s.weight) {
+        if !consistent(wi, s.wi) || !nonzero(s.weight) {
             continue;
         }
         let ray = hit.spawn_ray(wi);

@@ -3,13 +3,14 @@
 
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;
+use super::references::SceneReferences;
 use super::shape_check::check_shape;
 use super::transform::transform_matrix;
 use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply};
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Absorber, Bsdf, BsdfFlags};
 use crate::emitter::{Emitter, EmitterContext};
 use crate::error::{SceneError, did_you_mean};
-use crate::geometry::{self, Geometry, Mesh, ShapeGeometry, Sphere};
+use crate::geometry::{self, Geometry, Mesh, ShapeGeometry, Sphere, UvMapping};
 use crate::integrator::Integrator;
 use crate::output::Window;
 use crate::params::Params;
@@ -136,23 +137,25 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     }
     let camera = gltf_scene::build_camera(&desc.camera, path, base, film.width, film.height)?;
 
-    // BSDFs, by name.
+    // BSDFs, by name (with the textures and BSDFs they refer to).
+    let references = SceneReferences::new(base, desc.bsdfs.clone());
     let mut bsdf_names = Vec::new();
     let mut bsdfs: Vec<Arc<dyn Bsdf>> = Vec::new();
-    for (name, spec) in &desc.bsdfs {
-        let plugin = registry::find::<BsdfPlugin>(&spec.kind)
-            .map_err(|e| err(format!("bsdf `{name}`: {e}")))?;
-        let mut params = plugin_params(name, "bsdf", spec, plugin.params)
-            .map_err(err)?
-            .with_base_dir(base);
-        let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
-        params.finish().map_err(|e| err(e.to_string()))?;
+    let mut bsdf_flags = Vec::new();
+    let mut one_sided = Vec::new();
+    for name in desc.bsdfs.keys() {
+        let built = references.named_bsdf(name).map_err(err)?;
         bsdf_names.push(name.as_str());
-        bsdfs.push(bsdf);
+        bsdfs.push(built.bsdf);
+        bsdf_flags.push(built.flags);
+        one_sided.push(built.one_sided);
     }
+    // The back of the one-sided BSDFs, added once if a shape uses one.
+    let mut absorber = None;
 
     // Shapes, with their area emitters.
     let mut geometries = Vec::new();
+    let mut uv_mappings = Vec::new();
     let mut shape_bsdf = Vec::new();
     let mut shape_emitter = Vec::new();
     let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
@@ -181,7 +184,8 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                         }
                     ))
                 })?;
-                parts.push((bsdf, build_shape(shape, base).map_err(shape_err)?));
+                let (geometry, mapping) = build_shape(shape, base).map_err(shape_err)?;
+                parts.push((bsdf, geometry, mapping));
             }
             None => {
                 for (material, spec, geometry) in
@@ -194,19 +198,31 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                         plugin_params(&name, "bsdf", &spec, plugin.params).map_err(err)?;
                     let bsdf = (plugin.create)(&mut params).map_err(|e| err(e.to_string()))?;
                     params.finish().map_err(|e| err(e.to_string()))?;
+                    bsdf_flags.push(bsdf.flags());
+                    one_sided.push(false);
                     bsdfs.push(bsdf);
-                    parts.push((bsdfs.len() - 1, geometry));
+                    parts.push((bsdfs.len() - 1, geometry, UvMapping::Intrinsic));
                 }
             }
         }
-        for (bsdf, geometry) in parts {
+        for (bsdf, geometry, mapping) in parts {
             check_shape(&geometry).map_err(|e| err(format!("{label}: {e}")))?;
             if shape.emitter.is_some()
                 && let ShapeGeometry::Mesh(mesh) = &geometry
             {
                 emitting_triangles += mesh.indices.len() as u64;
             }
-            shape_bsdf.push(bsdf as u32);
+            let back = if one_sided[bsdf] {
+                *absorber.get_or_insert_with(|| {
+                    bsdfs.push(Arc::new(Absorber));
+                    bsdf_flags.push(BsdfFlags::NONE);
+                    one_sided.push(false);
+                    bsdfs.len() - 1
+                })
+            } else {
+                bsdf
+            };
+            shape_bsdf.push([bsdf as u32, back as u32]);
             shape_emitter.push(match &shape.emitter {
                 None => None,
                 Some(spec) => {
@@ -218,6 +234,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                 }
             });
             geometries.push(geometry);
+            uv_mappings.push(mapping);
         }
     }
     let mut environment = None;
@@ -285,8 +302,9 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         spp: desc.sampler.spp,
         jitter: desc.sampler.jitter,
         seed: desc.sampler.seed,
-        geometry: Geometry::new(geometries),
+        geometry: Geometry::new(geometries).with_uv_mappings(uv_mappings),
         bsdfs,
+        bsdf_flags,
         emitters,
         environment,
         shape_bsdf,
@@ -413,7 +431,12 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
     Ok(())
 }
 
-fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, ShapeError> {
+/// The shape's geometry, and how its points map to texture coordinates (Mitsuba's
+/// parameterisations: in the shape's own frame for a sphere and a disk).
+fn build_shape(
+    shape: &ShapeDescription,
+    base: &Path,
+) -> Result<(ShapeGeometry, UvMapping), ShapeError> {
     let scene_err = |m: String| ShapeError::Scene(m);
     check_shape_fields(shape)?;
     let matrix = transform_matrix(&shape.transform).map_err(scene_err)?;
@@ -473,13 +496,25 @@ fn build_shape(shape: &ShapeDescription, base: &Path) -> Result<ShapeGeometry, S
                     scale.to_array()
                 )));
             }
-            return Ok(ShapeGeometry::Sphere(Sphere {
+            let sphere = ShapeGeometry::Sphere(Sphere {
                 center: matrix.transform_point3(center),
                 radius: radius * s.x,
-            }));
+            });
+            let to_object = glam::Mat3::from_mat4(matrix).inverse();
+            return Ok((sphere, UvMapping::Sphere { to_object }));
         }
     };
-    Ok(ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)))
+    let mapping = match shape.kind.as_str() {
+        // Mitsuba's polar coordinates are not linear over the fan's triangles.
+        "disk" => UvMapping::Polar {
+            to_object: glam::Affine3A::from_mat4(matrix).inverse(),
+        },
+        _ => UvMapping::Intrinsic,
+    };
+    Ok((
+        ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)),
+        mapping,
+    ))
 }
 
 /// The shape's normal options, then its transform.

@@ -9,11 +9,12 @@ pub mod load;
 pub mod obj;
 pub mod overrides;
 pub mod ply;
+pub mod references;
 pub mod shape_check;
 pub mod syntax;
 pub mod transform;
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, BsdfFlags, Side};
 use crate::camera::Camera;
 use crate::emitter::Emitter;
 use crate::geometry::{Geometry, Intersection, Ray};
@@ -36,13 +37,20 @@ pub struct Scene {
     /// different seeds shade the same points, as `lumis study` needs).
     pub jitter: bool,
     pub geometry: Geometry,
+    /// Every BSDF a shape uses (and [`Absorber`](crate::bsdf::Absorber), the back of the
+    /// one-sided ones, if there are any).
     pub bsdfs: Vec<Arc<dyn Bsdf>>,
+    /// Per BSDF: its flags as shading points read them ([`Bsdf::flags`], with
+    /// [`BsdfFlags::SPATIALLY_VARYING`] where it was given a texture).
+    pub bsdf_flags: Vec<BsdfFlags>,
     /// Every light: area emitters of shapes in shape order, then the scene's `emitters` list.
     pub emitters: Vec<Arc<dyn Emitter>>,
     /// Index of the environment emitter, which rays leaving the scene reach.
     pub environment: Option<usize>,
-    /// Per shape: index of its BSDF and of its area emitter.
-    pub shape_bsdf: Vec<u32>,
+    /// Per shape: index of the BSDF seen from its front and from its back (`[front, back]`,
+    /// indexed by [`Side`]): the same BSDF but for a one-sided one, whose back is the absorber.
+    pub shape_bsdf: Vec<[u32; 2]>,
+    /// Per shape: index of its area emitter.
     pub shape_emitter: Vec<Option<u32>>,
     /// Per light: the shape it is the area emitter of (None for the others).
     pub emitter_shape: Vec<Option<u32>>,
@@ -72,8 +80,17 @@ impl Scene {
             .occluded_by_others(ray, self.shadow_ray_skips[light], Some(from))
     }
 
+    /// The BSDF of the surface `hit` met, seen from its front.
     pub fn bsdf(&self, hit: &Intersection) -> &dyn Bsdf {
-        self.bsdfs[self.shape_bsdf[hit.shape as usize] as usize].as_ref()
+        self.bsdf_seen_from(hit, Side::Front).0
+    }
+
+    /// The BSDF of the surface `hit` met, seen from `side` (a one-sided BSDF is black from
+    /// its back), with its flags ([`Scene::bsdf_flags`]).
+    #[inline(always)]
+    pub fn bsdf_seen_from(&self, hit: &Intersection, side: Side) -> (&dyn Bsdf, BsdfFlags) {
+        let index = self.shape_bsdf[hit.shape as usize][side as usize] as usize;
+        (self.bsdfs[index].as_ref(), self.bsdf_flags[index])
     }
 
     /// Radiance arriving along `-wi` from the environment, for a ray that left the scene.

@@ -1,11 +1,12 @@
 //! Wavefront OBJ import: polygonal faces (`f`) over positions (`v`) and, when every face vertex
-//! has one, vertex normals (`vn`).
+//! has one, vertex normals (`vn`) and texture coordinates (`vt`, with v turned to 1 − v as
+//! Mitsuba 3 turns it, so that v = 0 is the top row of an image as in its other formats).
 //!
 //! Faces with more than three vertices are split into a fan from their first vertex (as
 //! Mitsuba, pbrt and tinyobjloader do: exact for convex planar polygons). Indices may be
 //! negative (relative to the last vertex defined so far). `o` and `g` name the faces that
-//! follow, so that one object or group can be selected. Texture coordinates are checked but not
-//! used; materials (`mtllib`, `usemtl`) are not read, so an OBJ file never makes lumis open
+//! follow, so that one object or group can be selected. Materials (`mtllib`, `usemtl`) are not
+//! read, so an OBJ file never makes lumis open
 //! another file; points and lines have no area and are skipped. Free-form geometry (curves and
 //! surfaces) is refused rather than dropped.
 //!
@@ -13,7 +14,7 @@
 //! and a file that fails to load must say where and why.
 
 use crate::geometry::Mesh;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
@@ -30,21 +31,23 @@ const FREE_FORM: &[&str] = &[
     "end", "con",
 ];
 
-/// One corner of a face: indices (from 0) of its position and normal.
+/// One corner of a face: indices (from 0) of its position, normal and texture coordinates.
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
 struct Corner {
     position: u32,
     normal: Option<u32>,
+    texcoord: Option<u32>,
 }
 
 /// Parses OBJ text; errors name the line (from 1).
 pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
     let mut positions: Vec<Vec3> = Vec::new();
     let mut normals: Vec<Vec3> = Vec::new();
-    let mut texcoords = 0usize;
+    let mut texcoords: Vec<Vec2> = Vec::new();
     // Triangles of the selected faces, as corners.
     let mut triangles: Vec<[Corner; 3]> = Vec::new();
     let mut every_corner_has_a_normal = true;
+    let mut every_corner_has_a_texcoord = true;
     let mut names: Vec<String> = Vec::new();
     let mut object = String::new();
     let mut groups: Vec<String> = Vec::new();
@@ -70,7 +73,8 @@ pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
                 normals.push(n.normalize());
             }
             "vt" => {
-                texcoords += 1;
+                let (u, v) = texcoord(&mut tokens).map_err(err)?;
+                texcoords.push(Vec2::new(u, 1.0 - v));
             }
             "o" | "g" => {
                 let rest: Vec<String> = tokens.map(str::to_string).collect();
@@ -90,7 +94,8 @@ pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
                 face.clear();
                 for token in tokens {
                     face.push(
-                        corner(token, positions.len(), texcoords, normals.len()).map_err(err)?,
+                        corner(token, positions.len(), texcoords.len(), normals.len())
+                            .map_err(err)?,
                     );
                 }
                 if face.len() < 3 {
@@ -103,6 +108,7 @@ pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
                     continue;
                 }
                 every_corner_has_a_normal &= face.iter().all(|c| c.normal.is_some());
+                every_corner_has_a_texcoord &= face.iter().all(|c| c.texcoord.is_some());
                 for i in 2..face.len() {
                     triangles.push([face[0], face[i - 1], face[i]]);
                 }
@@ -134,25 +140,30 @@ pub fn parse(bytes: &[u8], only: Option<&str>) -> Result<Mesh, String> {
     if triangles.is_empty() {
         return Err("the file has no faces".into());
     }
-    // One vertex per distinct (position, normal) corner, in order of first use.
+    // One vertex per distinct (position, normal, texture coordinates) corner, in order of first
+    // use; a normal or texture coordinates only if every corner has them.
     let mut index: HashMap<Corner, u32> = HashMap::new();
     let mut mesh = Mesh {
         positions: Vec::new(),
         normals: every_corner_has_a_normal.then(Vec::new),
         indices: Vec::with_capacity(triangles.len()),
+        uvs: every_corner_has_a_texcoord.then(Vec::new),
     };
     for triangle in &triangles {
         let mut t = [0u32; 3];
         for (k, c) in triangle.iter().enumerate() {
-            let c = if every_corner_has_a_normal {
-                *c
-            } else {
-                Corner { normal: None, ..*c }
+            let c = Corner {
+                normal: c.normal.filter(|_| every_corner_has_a_normal),
+                texcoord: c.texcoord.filter(|_| every_corner_has_a_texcoord),
+                ..*c
             };
             t[k] = *index.entry(c).or_insert_with(|| {
                 mesh.positions.push(positions[c.position as usize]);
                 if let (Some(n), Some(i)) = (&mut mesh.normals, c.normal) {
                     n.push(normals[i as usize]);
+                }
+                if let (Some(uvs), Some(i)) = (&mut mesh.uvs, c.texcoord) {
+                    uvs.push(texcoords[i as usize]);
                 }
                 mesh.positions.len() as u32 - 1
             });
@@ -215,6 +226,26 @@ fn vector<'a>(
     Ok(Vec3::new(values[0], values[1], values[2]))
 }
 
+/// The (u, v) of a `vt` line: one to three finite numbers, v 0 when absent (a 1D texture), the
+/// third (w) read past.
+fn texcoord<'a>(tokens: &mut impl Iterator<Item = &'a str>) -> Result<(f32, f32), String> {
+    let mut values = Vec::with_capacity(3);
+    for token in tokens {
+        let value: f32 = token
+            .parse()
+            .map_err(|_| format!("`vt`: `{token}` is not a number"))?;
+        if !value.is_finite() {
+            return Err(format!("`vt`: `{token}` is not a finite number"));
+        }
+        values.push(value);
+    }
+    match values[..] {
+        [u] => Ok((u, 0.0)),
+        [u, v] | [u, v, _] => Ok((u, v)),
+        _ => Err(format!("`vt` takes 1 to 3 numbers, found {}", values.len())),
+    }
+}
+
 /// One face vertex `v`, `v/t`, `v//n` or `v/t/n`, with indices resolved against the counts
 /// defined so far.
 fn corner(
@@ -229,14 +260,19 @@ fn corner(
         return Err(format!("face vertex `{token}` has more than three indices"));
     }
     let position = resolve(parts[0].unwrap_or_default(), positions, "vertex", token)?;
-    if let Some(t) = parts[1].filter(|t| !t.is_empty()) {
-        resolve(t, texcoords, "texture coordinate", token)?;
-    }
+    let texcoord = match parts[1].filter(|t| !t.is_empty()) {
+        Some(t) => Some(resolve(t, texcoords, "texture coordinate", token)?),
+        None => None,
+    };
     let normal = match parts[2].filter(|n| !n.is_empty()) {
         Some(n) => Some(resolve(n, normals, "normal", token)?),
         None => None,
     };
-    Ok(Corner { position, normal })
+    Ok(Corner {
+        position,
+        normal,
+        texcoord,
+    })
 }
 
 /// An OBJ index (from 1, or negative from the end) as an index from 0 into `count` items.
@@ -273,6 +309,37 @@ mod tests {
         assert_eq!(m.positions.len(), 6);
         assert_eq!(m.normals.as_ref().unwrap()[3], Vec3::Z);
         assert_eq!(m.indices, vec![[0, 1, 2], [3, 4, 5]]);
+    }
+
+    /// Texture coordinates are kept (v turned to 1 − v, as Mitsuba reads OBJ) when every corner
+    /// has them; a corner is a vertex per distinct position, normal and texture coordinates.
+    #[test]
+    fn texture_coordinates_are_kept_per_corner_with_v_turned() {
+        let text = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.75\nvt 1 0\nvt 0.5\n\
+                     f 1/1 2/2 3/3\nf 1/2 3/3 2/2\n";
+        let m = parse(text, None).unwrap();
+        let uvs = m.uvs.as_ref().unwrap();
+        assert_eq!(m.positions.len(), 4);
+        assert_eq!(
+            uvs[..],
+            [
+                Vec2::new(0.25, 0.25),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(0.5, 1.0),
+                Vec2::new(1.0, 1.0)
+            ]
+        );
+        assert_eq!(m.indices, vec![[0, 1, 2], [3, 2, 1]]);
+        // A corner without: none are kept, and corners are by position (and normal) only.
+        let text = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3\n";
+        assert_eq!(parse(text, None).unwrap().uvs, None);
+        let e = parse(b"vt 0 nan\n", None).unwrap_err();
+        assert!(
+            e.starts_with("line 1: ") && e.contains("not a finite number"),
+            "{e}"
+        );
+        let e = parse(b"vt\n", None).unwrap_err();
+        assert!(e.contains("`vt` takes 1 to 3 numbers, found 0"), "{e}");
     }
 
     #[test]

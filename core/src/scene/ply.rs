@@ -1,7 +1,9 @@
 //! Stanford PLY import (ASCII, binary little- and big-endian): the `vertex` element's `x`, `y`,
-//! `z` and, when all three are present, `nx`, `ny`, `nz` as vertex normals; the `face` element's
-//! `vertex_indices` (or `vertex_index`) lists, polygons split into fans from their first vertex.
-//! Other elements and properties (colours, texture coordinates, edges, materials) are read past.
+//! `z`, when all three are present `nx`, `ny`, `nz` as vertex normals, and when a pair is present
+//! `u`, `v` (or `s`, `t`, or `texture_u`, `texture_v`, as Mitsuba 3 reads them) as texture
+//! coordinates; the `face` element's `vertex_indices` (or `vertex_index`) lists, polygons split
+//! into fans from their first vertex. Other elements and properties (colours, edges, materials)
+//! are read past.
 //!
 //! A small parser of our own rather than `ply-rs`: that crate has had no release since 2018,
 //! its maintained fork needs a newer Rust than lumis supports, and neither reports the line or
@@ -9,7 +11,7 @@
 //! anything is allocated for it.
 
 use crate::geometry::Mesh;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::path::Path;
 
 /// Loads the faces of a PLY file.
@@ -170,6 +172,7 @@ pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
     };
     let mut positions: Vec<Vec3> = Vec::new();
     let mut normals: Option<Vec<Vec3>> = None;
+    let mut uvs: Option<Vec<Vec2>> = None;
     let mut indices: Vec<[u32; 3]> = Vec::new();
     // Faces may come before the vertices: their indices are checked against the declared count
     // (which the vertex element must then fill).
@@ -213,8 +216,16 @@ pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
                     }
                     _ => None,
                 };
+                let scalar = |i: usize| matches!(element.properties[i].kind, Kind::Scalar(_));
+                let uv_at = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"]]
+                    .iter()
+                    .find_map(|names| match names.map(|n| element.position(n)) {
+                        [Some(u), Some(v)] if scalar(u) && scalar(v) => Some([u, v]),
+                        _ => None,
+                    });
                 positions.reserve(count);
                 let mut found_normals = normal_at.map(|_| Vec::with_capacity(count));
+                let mut found_uvs = uv_at.map(|_| Vec::with_capacity(count));
                 for v in 0..count {
                     let at = reader.place();
                     reader.instance(element, &mut values, &mut |_, _| Ok(()))?;
@@ -232,8 +243,18 @@ pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
                         }
                         normals.push(n.normalize());
                     }
+                    if let (Some(uvs), Some([iu, iv])) = (&mut found_uvs, uv_at) {
+                        let uv = Vec2::new(values[iu] as f32, values[iv] as f32);
+                        if !uv.is_finite() {
+                            return Err(format!(
+                                "{at}: vertex {v} texture coordinates {uv} are not finite"
+                            ));
+                        }
+                        uvs.push(uv);
+                    }
                 }
                 normals = found_normals;
+                uvs = found_uvs;
             }
             "face" if !seen_face => {
                 seen_face = true;
@@ -298,6 +319,7 @@ pub fn parse(bytes: &[u8]) -> Result<Mesh, String> {
         positions,
         normals,
         indices,
+        uvs,
     })
 }
 
@@ -576,6 +598,52 @@ mod tests {
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.indices, vec![[0, 1, 2], [0, 2, 3]]);
         assert_eq!(m.normals, None);
+    }
+
+    /// Texture coordinates under each of the names Mitsuba reads, as written (no v turned).
+    #[test]
+    fn texture_coordinates_are_read_under_each_name() {
+        for (u, v) in [("u", "v"), ("s", "t"), ("texture_u", "texture_v")] {
+            let text = ASCII_QUAD.replace(
+                "property uchar red",
+                &format!("property uchar red\nproperty float {u}\nproperty float {v}"),
+            );
+            let text = text
+                .replace("0 0 0 255\n", "0 0 0 255 0 0.25\n")
+                .replace("1 0 0 0\n1 1", "1 0 0 0 1 0.25\n1 1")
+                .replace("1 1 0 0\n", "1 1 0 0 1 1\n")
+                .replace("0 1 0 0\n", "0 1 0 0 0 1\n");
+            let m = parse(text.as_bytes()).unwrap();
+            assert_eq!(
+                m.uvs.unwrap(),
+                [[0.0, 0.25], [1.0, 0.25], [1.0, 1.0], [0.0, 1.0]].map(Vec2::from),
+                "{u}, {v}"
+            );
+        }
+        // Only one of a pair: none.
+        let one = ASCII_QUAD.replace("property uchar red", "property uchar red\nproperty float u");
+        let one = one
+            .replace(" 255\n", " 255 0\n")
+            .replace("\n1 0 0 0\n", "\n1 0 0 0 0\n");
+        let one = one
+            .replace("\n1 1 0 0\n", "\n1 1 0 0 0\n")
+            .replace("\n0 1 0 0\n", "\n0 1 0 0 0\n");
+        assert_eq!(parse(one.as_bytes()).unwrap().uvs, None);
+        let nan = ASCII_QUAD.replace(
+            "property uchar red",
+            "property uchar red\nproperty float s\nproperty float t",
+        );
+        let nan = nan
+            .replace(" 255\n", " 255 0 nan\n")
+            .replace("\n1 0 0 0\n", "\n1 0 0 0 0 0\n");
+        let nan = nan
+            .replace("\n1 1 0 0\n", "\n1 1 0 0 0 0\n")
+            .replace("\n0 1 0 0\n", "\n0 1 0 0 0 0\n");
+        let e = parse(nan.as_bytes()).unwrap_err();
+        assert!(
+            e.contains("line 14: vertex 0 texture coordinates") && e.contains("not finite"),
+            "{e}"
+        );
     }
 
     #[test]

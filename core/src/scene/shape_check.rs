@@ -131,6 +131,7 @@ mod tests {
                 positions: vec![Vec3::ZERO, Vec3::X, p],
                 normals: None,
                 indices: vec![[0, 1, 2]],
+                uvs: None,
             }));
         }
         let mut refused = 0;

@@ -1,40 +1,59 @@
 //! `diffuse`: Lambertian reflection, sampled with the cosine-weighted hemisphere.
 //!
 //! Parameters:
-//! - `reflectance` (rgb, default (0.5, 0.5, 0.5), dimensionless, each channel in [0, 1]): the
-//!   albedo, the fraction of incident light reflected.
+//! - `reflectance` (rgb or texture, default (0.5, 0.5, 0.5), dimensionless, each channel in
+//!   [0, 1]): the albedo, the fraction of incident light reflected; a texture written inline
+//!   (`(type: "checkerboard", ...)`) makes it vary over the surface.
 //!
-//! One-sided in the shading frame: directions below the shading horizon get zero.
+//! Reflection only: directions below the shading horizon (`wi.z ≤ 0`) get zero.
 
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::{
-    Bsdf, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes, eval_pdf_in_lanes, sample_in_lanes,
+    Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
+    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
 };
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::{Lanes, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::BsdfPlugin;
+use lumis_core::texture::{RgbSource, Textured};
 use std::f32::consts::FRAC_1_PI;
 use std::sync::Arc;
 
-pub struct Diffuse {
-    reflectance: Rgb,
+/// Lambertian reflection of albedo `reflectance`: a constant (`Rgb`, the default) or a
+/// texture ([`Textured`]).
+pub struct Diffuse<R: RgbSource = Rgb> {
+    reflectance: R,
 }
 
-impl Diffuse {
-    pub fn new(reflectance: Rgb) -> Self {
+impl<R: RgbSource> Diffuse<R> {
+    pub fn new(reflectance: R) -> Self {
         Diffuse { reflectance }
     }
 }
 
-impl BsdfLanes for Diffuse {
+impl<R: RgbSource> BsdfLanes for Diffuse<R> {
+    /// The reflectance at each lane's point.
+    type Params<L: Lanes> = V3<L>;
+
+    #[inline(always)]
+    fn params_lanes<L: Lanes>(&self, ctx: &BsdfContextLanes<L>) -> V3<L> {
+        self.reflectance.at(ctx.uv)
+    }
+
     /// `eval` and `pdf` in each lane: the one formula of the scalar and the batch methods.
     #[inline(always)]
-    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
+    fn eval_pdf_lanes<L: Lanes>(
+        &self,
+        reflectance: &V3<L>,
+        _ctx: &BsdfContextLanes<L>,
+        wo: V3<L>,
+        wi: V3<L>,
+    ) -> (V3<L>, L) {
         let zero = L::splat(0.0);
         let below = wo.z.le(zero);
-        let value = V3::splat(self.reflectance) * (L::splat(FRAC_1_PI) * wi.z);
+        let value = *reflectance * (L::splat(FRAC_1_PI) * wi.z);
         (
             V3::select(below | wi.z.le(zero), V3::zero(), value),
             L::select(below, zero, cosine_hemisphere_pdf_lanes(wi.z)),
@@ -45,6 +64,8 @@ impl BsdfLanes for Diffuse {
     #[inline(always)]
     fn sample_lanes<L: Lanes>(
         &self,
+        reflectance: &V3<L>,
+        _ctx: &BsdfContextLanes<L>,
         wo: V3<L>,
         _u_lobe: L,
         (u0, u1): (L, L),
@@ -52,48 +73,54 @@ impl BsdfLanes for Diffuse {
         let zero = L::splat(0.0);
         let wi = square_to_cosine_hemisphere_lanes(u0, u1);
         let pdf = cosine_hemisphere_pdf_lanes(wi.z);
-        BsdfSampleLanes {
-            valid: !wo.z.le(zero) & pdf.gt(zero),
-            wi,
-            pdf,
-            weight: V3::splat(self.reflectance),
-        }
+        BsdfSampleLanes::new(!wo.z.le(zero) & pdf.gt(zero), wi, pdf, *reflectance)
     }
 }
 
-impl Bsdf for Diffuse {
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        self.eval_pdf(wo, wi).0
+impl<R: RgbSource> Bsdf for Diffuse<R> {
+    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
+        self.eval_pdf(ctx, wo, wi).0
     }
 
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(wo, wi).1
+    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
+        self.eval_pdf(ctx, wo, wi).1
     }
 
-    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        let (value, pdf) = self.eval_pdf_lanes::<f32>(V3::splat(wo), V3::splat(wi));
-        (value.lane(0), pdf)
+    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        eval_pdf_one(self, ctx, wo, wi)
     }
 
-    fn sample(&self, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        self.sample_lanes::<f32>(V3::splat(wo), 0.0, (u.x, u.y))
-            .lane(0)
+    fn sample(&self, ctx: &BsdfContext, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        sample_one(self, ctx, wo, 0.0, u)
     }
 
-    fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
-        eval_pdf_in_lanes(self, wo, wi, out);
+    fn eval_pdf_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        wi: &[Vec3],
+        out: &mut [(Rgb, f32)],
+    ) {
+        eval_pdf_in_lanes(self, ctx, wo, wi, out);
     }
 
-    fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
-        sample_in_lanes(self, wo, u, out);
+    fn sample_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        u: &[(f32, Vec2)],
+        out: &mut [Option<BsdfSample>],
+    ) {
+        sample_in_lanes(self, ctx, wo, u, out);
     }
 
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags {
-            diffuse: true,
-            glossy: false,
-            delta: false,
-        }
+        let varying = if self.reflectance.varies() {
+            BsdfFlags::SPATIALLY_VARYING
+        } else {
+            BsdfFlags::NONE
+        };
+        BsdfFlags::DIFFUSE_REFLECTION | varying
     }
 }
 
@@ -103,17 +130,20 @@ pub const REFLECTANCE: &str = "reflectance";
 
 static PARAMS: &[ParamSpec] = &[ParamSpec {
     name: REFLECTANCE,
-    kind: ParamKind::Rgb {
+    kind: ParamKind::RgbOrTexture {
         default: Some([0.5, 0.5, 0.5]),
         max: 1.0,
     },
     unit: "",
-    description: "albedo: fraction of incident light reflected, per channel, in [0, 1]",
+    description: "albedo: fraction of incident light reflected, per channel, in [0, 1]; or a texture",
 }];
 
+/// A constant reflectance builds `Diffuse<Rgb>`, whose code is the untextured one.
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
-    let reflectance = params.rgb(REFLECTANCE)?;
-    Ok(Arc::new(Diffuse::new(reflectance)))
+    Ok(match params.rgb_or_texture(REFLECTANCE)? {
+        Textured::Constant(reflectance) => Arc::new(Diffuse::new(reflectance)),
+        textured => Arc::new(Diffuse::new(textured)),
+    })
 }
 
 inventory::submit! {

@@ -22,7 +22,8 @@
 
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::{
-    Bsdf, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes, eval_pdf_in_lanes, sample_in_lanes,
+    Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
+    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
 };
 use lumis_core::math::lanes::{Lanes, Mask, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
@@ -239,9 +240,21 @@ impl Glossy {
 }
 
 impl BsdfLanes for Glossy {
+    /// Every parameter is a constant.
+    type Params<L: Lanes> = ();
+
+    #[inline(always)]
+    fn params_lanes<L: Lanes>(&self, _ctx: &BsdfContextLanes<L>) {}
+
     /// `eval` and `pdf` of the mixture.
     #[inline(always)]
-    fn eval_pdf_lanes<L: Lanes>(&self, wo: V3<L>, wi: V3<L>) -> (V3<L>, L) {
+    fn eval_pdf_lanes<L: Lanes>(
+        &self,
+        _params: &(),
+        _ctx: &BsdfContextLanes<L>,
+        wo: V3<L>,
+        wi: V3<L>,
+    ) -> (V3<L>, L) {
         let pair = self.pair(wo, wi);
         (self.value(&pair), self.density(&pair))
     }
@@ -249,7 +262,14 @@ impl BsdfLanes for Glossy {
     /// `sample` in each lane: the specular lobe by visible normals or the diffuse base, then
     /// its value and density from `eval_pdf` (as [`lumis_core::bsdf::sample_from_pdf`]).
     #[inline(always)]
-    fn sample_lanes<L: Lanes>(&self, wo: V3<L>, u_lobe: L, u: (L, L)) -> BsdfSampleLanes<L> {
+    fn sample_lanes<L: Lanes>(
+        &self,
+        params: &(),
+        ctx: &BsdfContextLanes<L>,
+        wo: V3<L>,
+        u_lobe: L,
+        u: (L, L),
+    ) -> BsdfSampleLanes<L> {
         let specular = u_lobe.lt(self.specular_probability(wo));
         let wi = if specular.all() {
             reflect(wo, self.sample_visible_normal(wo, u))
@@ -263,43 +283,53 @@ impl BsdfLanes for Glossy {
             )
         };
         let above = !wo.z.le(L::splat(0.0));
-        BsdfSampleLanes::from_pdf(above, wi, self.eval_pdf_lanes(wo, wi))
+        BsdfSampleLanes::from_pdf(above, wi, self.eval_pdf_lanes(params, ctx, wo, wi))
     }
 }
 
 impl Bsdf for Glossy {
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    fn eval(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
         self.value(&self.pair::<f32>(V3::splat(wo), V3::splat(wi)))
             .lane(0)
     }
 
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
         self.density(&self.pair::<f32>(V3::splat(wo), V3::splat(wi)))
     }
 
-    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        let (value, pdf) = self.eval_pdf_lanes::<f32>(V3::splat(wo), V3::splat(wi));
-        (value.lane(0), pdf)
+    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        eval_pdf_one(self, ctx, wo, wi)
     }
 
-    fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        self.sample_lanes::<f32>(V3::splat(wo), u_lobe, (u.x, u.y))
-            .lane(0)
+    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        sample_one(self, ctx, wo, u_lobe, u)
     }
 
-    fn eval_pdf_batch(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [(Rgb, f32)]) {
-        eval_pdf_in_lanes(self, wo, wi, out);
+    fn eval_pdf_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        wi: &[Vec3],
+        out: &mut [(Rgb, f32)],
+    ) {
+        eval_pdf_in_lanes(self, ctx, wo, wi, out);
     }
 
-    fn sample_batch(&self, wo: &[Vec3], u: &[(f32, Vec2)], out: &mut [Option<BsdfSample>]) {
-        sample_in_lanes(self, wo, u, out);
+    fn sample_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        u: &[(f32, Vec2)],
+        out: &mut [Option<BsdfSample>],
+    ) {
+        sample_in_lanes(self, ctx, wo, u, out);
     }
 
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags {
-            diffuse: self.diffuse != Rgb::ZERO,
-            glossy: true,
-            delta: false,
+        if self.diffuse == Rgb::ZERO {
+            BsdfFlags::GLOSSY_REFLECTION
+        } else {
+            BsdfFlags::GLOSSY_REFLECTION | BsdfFlags::DIFFUSE_REFLECTION
         }
     }
 }

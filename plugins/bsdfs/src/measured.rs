@@ -15,7 +15,7 @@
 //! reflects into can be drawn. `pdf` is exactly that mixture.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample, sample_from_pdf};
+use lumis_core::bsdf::{Bsdf, BsdfContext, BsdfFlags, BsdfSample, sample_from_pdf};
 use lumis_core::image_io::write_atomically;
 use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use lumis_core::math::{Distribution2D, Rgb, luminance};
@@ -249,14 +249,14 @@ impl Measured {
 }
 
 impl Bsdf for Measured {
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    fn eval(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Rgb::ZERO;
         }
         self.table.lookup(wi, wo) * wi.z
     }
 
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
@@ -268,7 +268,7 @@ impl Bsdf for Measured {
         table * self.table_pdf(wo, wi) + (1.0 - table) * cosine_hemisphere_pdf(wi.z)
     }
 
-    fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }
@@ -282,15 +282,11 @@ impl Bsdf for Measured {
             }
             _ => square_to_cosine_hemisphere(u),
         };
-        sample_from_pdf(self, wo, wi)
+        sample_from_pdf(self, ctx, wo, wi)
     }
 
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags {
-            diffuse: true,
-            glossy: true,
-            delta: false,
-        }
+        BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::GLOSSY_REFLECTION
     }
 }
 

@@ -8,7 +8,7 @@
 //! Integrators therefore reach mirrors only by BSDF sampling.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample};
+use lumis_core::bsdf::{Bsdf, BsdfContext, BsdfFlags, BsdfSample};
 use lumis_core::math::Rgb;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::BsdfPlugin;
@@ -19,29 +19,21 @@ pub struct Mirror {
 }
 
 impl Bsdf for Mirror {
-    fn eval(&self, _wo: Vec3, _wi: Vec3) -> Rgb {
+    fn eval(&self, _ctx: &BsdfContext, _wo: Vec3, _wi: Vec3) -> Rgb {
         Rgb::ZERO
     }
 
-    fn pdf(&self, _wo: Vec3, _wi: Vec3) -> f32 {
+    fn pdf(&self, _ctx: &BsdfContext, _wo: Vec3, _wi: Vec3) -> f32 {
         0.0
     }
 
-    fn sample(&self, wo: Vec3, _u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
-        (wo.z > 0.0).then_some(BsdfSample {
-            wi: Vec3::new(-wo.x, -wo.y, wo.z),
-            pdf: 1.0,
-            weight: self.reflectance,
-            delta: true,
-        })
+    fn sample(&self, _ctx: &BsdfContext, wo: Vec3, _u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
+        (wo.z > 0.0)
+            .then(|| BsdfSample::delta(Vec3::new(-wo.x, -wo.y, wo.z), 1.0, self.reflectance))
     }
 
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags {
-            diffuse: false,
-            glossy: false,
-            delta: true,
-        }
+        BsdfFlags::DELTA_REFLECTION
     }
 }
 

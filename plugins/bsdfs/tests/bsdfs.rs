@@ -5,7 +5,7 @@
 //! `every_registered_bsdf_has_a_test_plan`.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::Bsdf;
+use lumis_core::bsdf::{Bsdf, BsdfContext, Side};
 use lumis_core::chi2::{
     Chi2Test, FAMILY_FALSE_ALARM, run_side_by_side, sidak, test_bsdf, test_seed, z_limit,
 };
@@ -28,7 +28,8 @@ fn merl() -> &'static (lumis_bsdfs::measured::MerlTable, Arc<dyn Bsdf>) {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("glossy.binary");
         let source = bsdf("glossy", MERL_SOURCE);
-        lumis_bsdfs::measured::write_merl(&path, |wi, wo| source.eval(wo, wi) / wi.z).unwrap();
+        lumis_bsdfs::measured::write_merl(&path, |wi, wo| source.eval(&FRONT, wo, wi) / wi.z)
+            .unwrap();
         let table = lumis_bsdfs::measured::MerlTable::read(&path).unwrap();
         let plugin = bsdf(
             "measured",
@@ -50,6 +51,20 @@ fn bsdf(kind: &str, params: &str) -> Arc<dyn Bsdf> {
     let b = (plugin.create)(&mut p).unwrap();
     p.finish().unwrap();
     b
+}
+
+/// The context of a BSDF tested on its own: seen from the front, at uv (0, 0).
+const FRONT: BsdfContext = BsdfContext::FRONT;
+
+/// The `i`th of a few contexts: either side, at texture coordinates inside and outside [0, 1]².
+fn context(i: usize) -> BsdfContext {
+    let side = if i.is_multiple_of(2) {
+        Side::Front
+    } else {
+        Side::Back
+    };
+    let uv = [Vec2::ZERO, Vec2::new(0.3, 0.7), Vec2::new(-2.5, 11.25)][i % 3];
+    BsdfContext::new(uv, side)
 }
 
 /// ωo at the given cos θ (azimuth 30°, so no axis is special).
@@ -299,7 +314,7 @@ fn chi_square_sampling_matches_pdf() {
         if setup.half_vector {
             half_vector_chi2(b.as_ref(), setup.wo, &setup.test)
         } else {
-            test_bsdf(b.as_ref(), setup.wo, &setup.test)
+            test_bsdf(b.as_ref(), &FRONT, setup.wo, &setup.test)
         }
     });
     for ((name, _, _), outcome) in runs.iter().zip(outcomes) {
@@ -315,7 +330,7 @@ fn half_vector_chi2(b: &dyn Bsdf, wo: Vec3, test: &Chi2Test) -> lumis_core::chi2
     test.run(
         |s| {
             let u_lobe = s.next_1d();
-            let h = (wo + b.sample(wo, u_lobe, s.next_2d())?.wi).normalize();
+            let h = (wo + b.sample(&FRONT, wo, u_lobe, s.next_2d())?.wi).normalize();
             // Within ~1e-7 of the horizon the f32 round trip ωi → h → ωi can cross it; such
             // samples count as failed, as the density below does.
             (reflect(wo, h).z > 0.0).then_some(h)
@@ -325,7 +340,7 @@ fn half_vector_chi2(b: &dyn Bsdf, wo: Vec3, test: &Chi2Test) -> lumis_core::chi2
             if wi.z <= 0.0 || wo.dot(h) <= 0.0 {
                 return 0.0;
             }
-            (b.pdf(wo, wi) * 4.0 * wo.dot(h)) as f64
+            (b.pdf(&FRONT, wo, wi) * 4.0 * wo.dot(h)) as f64
         },
     )
 }
@@ -342,20 +357,20 @@ fn sample_weight_equals_eval_over_pdf() {
             let mut s = Sampler::new(test_seed(), 2, 3);
             for _ in 0..20_000 {
                 let (ul, u) = (s.next_1d(), s.next_2d());
-                let Some(smp) = b.sample(wo, ul, u) else {
+                let Some(smp) = b.sample(&FRONT, wo, ul, u) else {
                     continue;
                 };
                 assert!(smp.weight.is_finite() && smp.pdf > 0.0, "{name}: {smp:?}");
                 if smp.delta {
                     assert_eq!(
-                        b.eval(wo, smp.wi),
+                        b.eval(&FRONT, wo, smp.wi),
                         glam::Vec3::ZERO,
                         "{name}: delta lobes have no eval"
                     );
                     continue;
                 }
-                let pdf = b.pdf(wo, smp.wi);
-                let expected = b.eval(wo, smp.wi) / pdf;
+                let pdf = b.pdf(&FRONT, wo, smp.wi);
+                let expected = b.eval(&FRONT, wo, smp.wi) / pdf;
                 assert!(
                     ((pdf - smp.pdf) / pdf).abs() < 1e-4,
                     "{name}: pdf {pdf} vs {}",
@@ -385,7 +400,7 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
             for i in 0..4_000 {
                 let (ul, u) = (s.next_1d(), s.next_2d());
                 let wi = if i % 2 == 0 {
-                    let Some(smp) = b.sample(wo, ul, u) else {
+                    let Some(smp) = b.sample(&FRONT, wo, ul, u) else {
                         continue;
                     };
                     smp.wi
@@ -396,8 +411,8 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
                     Vec3::new(r * phi.cos(), r * phi.sin(), z)
                 };
                 assert_eq!(
-                    bits(b.eval_pdf(wo, wi)),
-                    bits((b.eval(wo, wi), b.pdf(wo, wi))),
+                    bits(b.eval_pdf(&FRONT, wo, wi)),
+                    bits((b.eval(&FRONT, wo, wi), b.pdf(&FRONT, wo, wi))),
                     "{name}: wo {wo} wi {wi}"
                 );
                 compared += 1;
@@ -453,16 +468,14 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                 s.pdf.to_bits(),
                 s.weight.to_array().map(f32::to_bits),
                 s.delta,
+                s.transmission(),
+                s.eta.to_bits(),
             )
         })
     };
     let eval_pdf_bits = |(f, p): (Vec3, f32)| (f.to_array().map(f32::to_bits), p.to_bits());
-    let sentinel = lumis_core::bsdf::BsdfSample {
-        wi: Vec3::NAN,
-        pdf: f32::NAN,
-        weight: Vec3::NAN,
-        delta: true,
-    };
+    let sentinel =
+        lumis_core::bsdf::BsdfSample::delta(Vec3::NAN, f32::NAN, Vec3::NAN).with_eta(f32::NAN);
     // The incidences, then the hostile ones not among them (incident(1) is +Z).
     let mut incidences: Vec<Vec3> = INCIDENT.map(incident).to_vec();
     for wo in hostile {
@@ -510,12 +523,21 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                                 _ => incidences[(k + round) % incidences.len()],
                             })
                             .collect();
+                        // Contexts likewise: the point's one (from the front or the back, at some
+                        // uv) given once or for every element, or each point's own.
+                        let point = context(round);
+                        let ctxs: Vec<BsdfContext> = (0..len)
+                            .map(|k| match round % 2 {
+                                0 => point,
+                                _ => context(k + round),
+                            })
+                            .collect();
                         let mut out = vec![Some(sentinel); len];
-                        let wo_argument = match round % 4 {
-                            0 => std::slice::from_ref(&wo),
-                            _ => &wos[..],
+                        let (ctx_argument, wo_argument) = match round % 4 {
+                            0 => (std::slice::from_ref(&point), std::slice::from_ref(&wo)),
+                            _ => (&ctxs[..], &wos[..]),
                         };
-                        b.sample_batch(wo_argument, &u, &mut out);
+                        b.sample_batch(ctx_argument, wo_argument, &u, &mut out);
                         let drawn = out.iter().filter(|s| s.is_some()).count();
                         // (Of the BSDFs with their own batch code.)
                         if name == "diffuse" || name.starts_with("glossy") {
@@ -523,7 +545,7 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                         }
                         for (k, (&(ul, uk), batch)) in u.iter().zip(&out).enumerate() {
                             let wo = wos[k];
-                            let single = b.sample(wo, ul, uk);
+                            let single = b.sample(&ctxs[k], wo, ul, uk);
                             assert_eq!(
                                 sample_bits(*batch),
                                 sample_bits(single),
@@ -546,7 +568,9 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                                     Vec3::new(r * phi.cos(), r * phi.sin(), z)
                                 };
                                 match (k + round) % 3 {
-                                    0 => b.sample(wo, ul, u).map_or_else(uniform, |smp| smp.wi),
+                                    0 => b
+                                        .sample(&FRONT, wo, ul, u)
+                                        .map_or_else(uniform, |smp| smp.wi),
                                     1 => uniform(),
                                     _ => {
                                         let special = special(wo);
@@ -557,14 +581,10 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
                             })
                             .collect();
                         let mut out = vec![(Vec3::NAN, f32::NAN); len];
-                        let wo_argument = match round % 4 {
-                            0 => std::slice::from_ref(&wo),
-                            _ => &wos[..],
-                        };
-                        b.eval_pdf_batch(wo_argument, &wi, &mut out);
+                        b.eval_pdf_batch(ctx_argument, wo_argument, &wi, &mut out);
                         for (k, (&wik, &batch)) in wi.iter().zip(&out).enumerate() {
                             let wo = wos[k];
-                            let single = b.eval_pdf(wo, wik);
+                            let single = b.eval_pdf(&ctxs[k], wo, wik);
                             assert_eq!(
                                 eval_pdf_bits(batch),
                                 eval_pdf_bits(single),
@@ -589,7 +609,7 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
             }
             // A delta lobe has no density: its directions are compared all the same.
             assert!(
-                some_above >= 8_000 && (b.flags().delta || positive_above >= 5_000),
+                some_above >= 8_000 && (b.flags().delta() || positive_above >= 5_000),
                 "{name} ({width} lanes): only {some_above} samples and {positive_above} directions of positive \
              density compared with wo above the horizon"
             );
@@ -614,7 +634,7 @@ fn albedo(b: &dyn Bsdf, wo: Vec3, n: usize) -> (f64, f64) {
     for _ in 0..n {
         let (ul, u) = (s.next_1d(), s.next_2d());
         let w = b
-            .sample(wo, ul, u)
+            .sample(&FRONT, wo, ul, u)
             .map_or(0.0, |smp| smp.weight.max_element() as f64);
         sum += w;
         sum2 += w * w;
@@ -674,8 +694,8 @@ fn eval_is_reciprocal() {
                 continue;
             }
             // eval includes cos θi: compare f = eval / cos θi both ways.
-            let f_ac = b.eval(a, c) / c.z;
-            let f_ca = b.eval(c, a) / a.z;
+            let f_ac = b.eval(&FRONT, a, c) / c.z;
+            let f_ca = b.eval(&FRONT, c, a) / a.z;
             let err = (f_ac - f_ca).abs().max_element();
             assert!(
                 err <= 1e-4 * f_ac.max_element().max(1e-3),
@@ -707,7 +727,7 @@ fn hostile_directions_give_finite_values() {
     for (name, b) in all_bsdfs() {
         for wo in special {
             for wi in special {
-                let (f, p) = (b.eval(wo, wi), b.pdf(wo, wi));
+                let (f, p) = (b.eval(&FRONT, wo, wi), b.pdf(&FRONT, wo, wi));
                 assert!(
                     f.is_finite() && f.min_element() >= 0.0,
                     "{name}: eval({wo}, {wi}) = {f}"
@@ -719,7 +739,7 @@ fn hostile_directions_give_finite_values() {
             }
             for u in corners {
                 for ul in [0.0, 0.5, 0.999_999_9] {
-                    if let Some(smp) = b.sample(wo, ul, u) {
+                    if let Some(smp) = b.sample(&FRONT, wo, ul, u) {
                         assert!(
                             smp.wi.is_finite() && smp.weight.is_finite() && smp.pdf.is_finite(),
                             "{name}: {smp:?}"
@@ -738,7 +758,7 @@ fn hostile_directions_give_finite_values() {
 fn measured_reproduces_the_analytic_brdf_it_was_generated_from() {
     let source = bsdf("glossy", MERL_SOURCE);
     let table = &merl().0;
-    let f = |wo: Vec3, wi: Vec3| source.eval(wo, wi) / wi.z;
+    let f = |wo: Vec3, wi: Vec3| source.eval(&FRONT, wo, wi) / wi.z;
     let mut s = Sampler::new(test_seed(), 12, 13);
     let mut errors = Vec::new();
     for _ in 0..20_000 {
@@ -811,8 +831,10 @@ fn lobe_sampling_turns_with_the_incident_direction() {
             let (cos, psi) = (0.2 + 0.7 * sampler.next_1d(), 6.0 * sampler.next_1d());
             let wo = incident(cos);
             let u = sampler.next_2d();
-            let (Some(a), Some(b)) = (b.sample(wo, u_lobe, u), b.sample(turn(wo, psi), u_lobe, u))
-            else {
+            let (Some(a), Some(b)) = (
+                b.sample(&FRONT, wo, u_lobe, u),
+                b.sample(&FRONT, turn(wo, psi), u_lobe, u),
+            ) else {
                 continue;
             };
             let expected = turn(a.wi, psi);

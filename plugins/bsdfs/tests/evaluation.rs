@@ -24,7 +24,10 @@
 //! the panels; tolerances are a multiple of it plus the plugins' f32 rounding.
 
 use glam::{DVec3, Vec3};
-use lumis_core::bsdf::Bsdf;
+use lumis_core::bsdf::{Bsdf, BsdfContext};
+
+/// The context of a BSDF tested on its own: seen from the front, at uv (0, 0).
+const FRONT: BsdfContext = BsdfContext::FRONT;
 use lumis_core::chi2::{FAMILY_FALSE_ALARM, sidak, test_sampler, test_seed, z_limit};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, BsdfPlugin};
@@ -192,15 +195,15 @@ impl Readback {
     }
 
     fn g1(&self, w: Vec3) -> f64 {
-        self.bsdf.eval(Vec3::Z, w).x as f64 / self.bsdf.pdf(Vec3::Z, w) as f64
+        self.bsdf.eval(&FRONT, Vec3::Z, w).x as f64 / self.bsdf.pdf(&FRONT, Vec3::Z, w) as f64
     }
 
     fn d(&self, h: Vec3) -> f64 {
-        4.0 * h.z as f64 * self.bsdf.pdf(h, h) as f64 / self.g1(h)
+        4.0 * h.z as f64 * self.bsdf.pdf(&FRONT, h, h) as f64 / self.g1(h)
     }
 
     fn g2(&self, wo: Vec3, wi: Vec3) -> f64 {
-        4.0 * wo.z as f64 * self.bsdf.eval(wo, wi).x as f64 / self.d((wo + wi).normalize())
+        4.0 * wo.z as f64 * self.bsdf.eval(&FRONT, wo, wi).x as f64 / self.d((wo + wi).normalize())
     }
 }
 
@@ -255,14 +258,14 @@ fn eval_and_pdf_match_the_closed_forms_at_chosen_angles() {
         let b = Readback::new(alpha32).bsdf;
         for (wo, wi) in chosen_pairs(alpha32 as f64) {
             let (o, i) = (wo.as_dvec3(), wi.as_dvec3());
-            let eval = b.eval(wo, wi);
+            let eval = b.eval(&FRONT, wo, wi);
             assert!(
                 eval.x == eval.y && eval.y == eval.z,
                 "grey for specular 1: {eval}"
             );
             for (what, plugin, closed) in [
                 ("eval", eval.x as f64, reference.eval(o, i)),
-                ("pdf", b.pdf(wo, wi) as f64, reference.pdf(o, i)),
+                ("pdf", b.pdf(&FRONT, wo, wi) as f64, reference.pdf(o, i)),
             ] {
                 let e = relative(plugin, closed);
                 worst = worst.max(e);
@@ -373,8 +376,8 @@ fn masking_is_the_product_of_g1_when_separable_is_asked_for() {
                 );
             }
             let (p, q) = (
-                plugin.bsdf.pdf(wo, wi) as f64,
-                correlated.bsdf.pdf(wo, wi) as f64,
+                plugin.bsdf.pdf(&FRONT, wo, wi) as f64,
+                correlated.bsdf.pdf(&FRONT, wo, wi) as f64,
             );
             assert!(
                 relative(p, q) <= POINTWISE,
@@ -516,8 +519,8 @@ fn eval_is_reciprocal_down_to_grazing_angles() {
             &format!("\"roughness\": {alpha}, \"specular\": (0.9, 0.5, 0.04), \"diffuse\": 0.4"),
         );
         for (wo, wi) in chosen_pairs(alpha as f64) {
-            let forward = b.eval(wo, wi) / wi.z;
-            let backward = b.eval(wi, wo) / wo.z;
+            let forward = b.eval(&FRONT, wo, wi) / wi.z;
+            let backward = b.eval(&FRONT, wi, wo) / wo.z;
             // Fresnel reads cos θd as ωo·h one way and ωi·h the other: for f32 vectors of norm
             // 1 ± ε they differ by about ε / |ωo + ωi|, which grazing mirror pairs amplify.
             let tolerance = 2.0 * POINTWISE * (1.0 + 2.0 / (wo + wi).length() as f64);
@@ -601,7 +604,7 @@ fn refined_rgb(rule: impl Fn(usize) -> DVec3, panels: usize) -> Rgb64 {
 }
 
 fn eval64(b: &dyn Bsdf, wo: Vec3, wi: Vec3) -> DVec3 {
-    b.eval(wo, wi).as_dvec3()
+    b.eval(&FRONT, wo, wi).as_dvec3()
 }
 
 /// Schlick's Fresnel, written from the definition: F0 + (1 − F0)(1 − cos θd)⁵.
@@ -765,7 +768,7 @@ fn sampled_albedo(b: &dyn Bsdf, wo: Vec3, samples: usize, stream: u64) -> (DVec3
     for _ in 0..samples {
         let u_lobe = s.next_1d();
         let w = b
-            .sample(wo, u_lobe, s.next_2d())
+            .sample(&FRONT, wo, u_lobe, s.next_2d())
             .map_or(DVec3::ZERO, |smp| smp.weight.as_dvec3());
         sum += w;
         sum2 += w * w;
@@ -842,7 +845,7 @@ const MERL_SOURCE: &str = "\"roughness\": 0.25, \"specular\": (0.9, 0.6, 0.3), \
 fn measured_from(source: &dyn Bsdf) -> Arc<dyn Bsdf> {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("source.binary");
-    lumis_bsdfs::measured::write_merl(&path, |wi, wo| source.eval(wo, wi) / wi.z).unwrap();
+    lumis_bsdfs::measured::write_merl(&path, |wi, wo| source.eval(&FRONT, wo, wi) / wi.z).unwrap();
     bsdf(
         "measured",
         &format!("\"file\": {:?}", path.to_str().unwrap()),

@@ -3,7 +3,10 @@
 //! height-correlated term by exactly the factor the formulas give.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::Bsdf;
+use lumis_core::bsdf::{Bsdf, BsdfContext};
+
+/// The context of a BSDF tested on its own: seen from the front, at uv (0, 0).
+const FRONT: BsdfContext = BsdfContext::FRONT;
 use lumis_core::chi2::{Chi2Test, FAMILY_FALSE_ALARM, sidak, test_bsdf, test_seed};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, BsdfPlugin};
@@ -68,7 +71,7 @@ fn separable_masking_sampling_passes_chi_square() {
     }
     let alpha = sidak(FAMILY_FALSE_ALARM, cases.len());
     for (name, b, wo, test) in &cases {
-        test_bsdf(b.as_ref(), *wo, test).assert_passes(alpha, name);
+        test_bsdf(b.as_ref(), &FRONT, *wo, test).assert_passes(alpha, name);
     }
 }
 
@@ -82,12 +85,12 @@ fn separable_masking_weight_equals_eval_over_pdf() {
             let mut accepted = 0;
             for _ in 0..20_000 {
                 let (ul, u) = (s.next_1d(), s.next_2d());
-                let Some(smp) = b.sample(wo, ul, u) else {
+                let Some(smp) = b.sample(&FRONT, wo, ul, u) else {
                     continue;
                 };
                 accepted += 1;
-                let pdf = b.pdf(wo, smp.wi);
-                let expected = b.eval(wo, smp.wi) / pdf;
+                let pdf = b.pdf(&FRONT, wo, smp.wi);
+                let expected = b.eval(&FRONT, wo, smp.wi) / pdf;
                 assert!(((pdf - smp.pdf) / pdf).abs() < 1e-4, "{name}: pdf");
                 let err = (smp.weight - expected).abs().max_element();
                 assert!(
@@ -128,7 +131,10 @@ fn separable_differs_from_height_correlated_by_the_formula_factor() {
         for _ in 0..5000 {
             let wo = uniform_hemisphere(s.next_2d());
             let wi = uniform_hemisphere(s.next_2d());
-            let (a, b) = (hc.eval(wo, wi).x as f64, sep.eval(wo, wi).x as f64);
+            let (a, b) = (
+                hc.eval(&FRONT, wo, wi).x as f64,
+                sep.eval(&FRONT, wo, wi).x as f64,
+            );
             if a < 1e-6 {
                 continue;
             }
@@ -144,7 +150,10 @@ fn separable_differs_from_height_correlated_by_the_formula_factor() {
         // The directions drawn reach angles where the difference is substantial.
         assert!(smallest < 0.9, "α={alpha}: smallest factor {smallest}");
         // At normal incidence and reflection the two agree to rounding.
-        let (a, b) = (hc.eval(Vec3::Z, Vec3::Z), sep.eval(Vec3::Z, Vec3::Z));
+        let (a, b) = (
+            hc.eval(&FRONT, Vec3::Z, Vec3::Z),
+            sep.eval(&FRONT, Vec3::Z, Vec3::Z),
+        );
         assert!((a - b).abs().max_element() <= 1e-6 * a.max_element());
     }
 }
@@ -166,8 +175,8 @@ fn separable_masking_loses_energy_never_gains_it() {
             let (mut sum, mut sum2) = (0.0f64, 0.0f64);
             for _ in 0..n {
                 let (ul, u) = (s.next_1d(), s.next_2d());
-                let w_sep = sep.sample(wo, ul, u).map_or(0.0, |x| x.weight.x);
-                let w_hc = hc.sample(wo, ul, u).map_or(0.0, |x| x.weight.x);
+                let w_sep = sep.sample(&FRONT, wo, ul, u).map_or(0.0, |x| x.weight.x);
+                let w_hc = hc.sample(&FRONT, wo, ul, u).map_or(0.0, |x| x.weight.x);
                 assert!(w_sep <= w_hc * (1.0 + 1e-5), "α={alpha} cos={cos}");
                 sum += w_sep as f64;
                 sum2 += (w_sep as f64).powi(2);

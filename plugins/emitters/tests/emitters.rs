@@ -551,6 +551,7 @@ fn light_on_triangles(params: &str) -> ShapeLight {
         indices: (0..triangles.len() as u32)
             .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
             .collect(),
+        uvs: None,
     };
     ShapeLight::new(ShapeGeometry::Mesh(mesh), params)
 }

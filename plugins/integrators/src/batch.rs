@@ -2,7 +2,7 @@
 
 use crate::shading_point::ShadingPoint;
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfSample};
+use lumis_core::bsdf::{Bsdf, BsdfContext, BsdfSample};
 use lumis_core::emitter::{Emitter, EmitterSample, ReferencePoint};
 use lumis_core::math::Rgb;
 use std::cell::RefCell;
@@ -20,6 +20,8 @@ pub(crate) struct BatchScratch {
     pub(crate) owners: Vec<usize>,
     /// ωo of each entry's shading point.
     pub(crate) wo: Vec<Vec3>,
+    /// The BSDF context of each entry's shading point.
+    pub(crate) contexts: Vec<BsdfContext>,
     pub(crate) bsdf_numbers: Vec<(f32, Vec2)>,
     pub(crate) bsdf_samples: Vec<Option<BsdfSample>>,
     pub(crate) references: Vec<ReferencePoint>,
@@ -45,6 +47,7 @@ impl BatchScratch {
     pub(crate) fn clear(&mut self) {
         self.owners.clear();
         self.wo.clear();
+        self.contexts.clear();
         self.bsdf_numbers.clear();
         self.bsdf_samples.clear();
         self.references.clear();
@@ -70,12 +73,14 @@ impl BatchScratch {
         self.values.iter()
     }
 
-    /// The BSDF samples of the entries in `bsdf_numbers`, with `wo`, into `bsdf_samples`: one
-    /// batch call per run of consecutive entries whose shading points (`owner`'s) share a BSDF.
+    /// The BSDF samples of the entries in `bsdf_numbers`, with `contexts` and `wo`, into
+    /// `bsdf_samples`: one batch call per run of consecutive entries whose shading points
+    /// (`owner`'s) share a BSDF.
     pub(crate) fn sample_bsdfs<'a>(&mut self, bsdf_of: impl Fn(usize) -> &'a dyn Bsdf) {
         self.bsdf_samples.resize(self.bsdf_numbers.len(), None);
         for_runs(&self.owners, &bsdf_of, |bsdf, run| {
             bsdf.sample_batch(
+                &self.contexts[run.clone()],
                 &self.wo[run.clone()],
                 &self.bsdf_numbers[run.clone()],
                 &mut self.bsdf_samples[run],
@@ -110,6 +115,7 @@ impl BatchScratch {
         self.values.resize(n, (Rgb::ZERO, 0.0));
         for_runs(&self.owners, &|owner| point_of(owner).bsdf, |bsdf, run| {
             bsdf.eval_pdf_batch(
+                &self.contexts[run.clone()],
                 &self.wo[run.clone()],
                 &self.directions[run.clone()],
                 &mut self.values[run],

@@ -37,8 +37,8 @@ use lumis_core::scene::Scene;
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SampleRecord {
     /// The integrand f = BSDF · |cos θ| · L_e · V in the sample's direction: zero when the
-    /// sample drew no direction, reflects away from the viewer's side, misses the light or is
-    /// occluded. For a Dirac BSDF sample (`delta`), f divided by the Dirac density: the BSDF
+    /// sample drew no direction, leaves on a side of the surface its BSDF does not scatter
+    /// toward (a leak through shading normals), misses the light or is occluded. For a Dirac BSDF sample (`delta`), f divided by the Dirac density: the BSDF
     /// sample's weight times L_e.
     pub f: Rgb,
     /// Solid-angle density of BSDF sampling in the sample's direction (for `delta`, the
@@ -303,8 +303,8 @@ pub fn draw_bsdf_samples(
 ) {
     if count == 1 {
         let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
-        let s = sp.bsdf.sample(sp.wo, u_lobe, u);
-        BsdfRecords::new(scene, sp, light, densities).push(s, records, deferred);
+        let s = sp.bsdf.sample(&sp.ctx, sp.wo, u_lobe, u);
+        BsdfRecords::new(scene, sp, light, densities).push_any(s.as_ref(), records, deferred);
         return;
     }
     // One point's batch, without `BatchScratch::sample_bsdfs`' owners (see `draw_light_samples`).
@@ -315,11 +315,22 @@ pub fn draw_bsdf_samples(
         let samples = &mut scratch.bsdf_samples;
         samples.clear();
         samples.resize(numbers.len(), None);
-        sp.bsdf
-            .sample_batch(std::slice::from_ref(&sp.wo), numbers, samples);
+        sp.bsdf.sample_batch(
+            std::slice::from_ref(&sp.ctx),
+            std::slice::from_ref(&sp.wo),
+            numbers,
+            samples,
+        );
         let bsdf_records = BsdfRecords::new(scene, sp, light, densities);
-        for &s in samples.iter() {
-            bsdf_records.push(s, records, deferred.as_deref_mut());
+        // The side test chosen once for the batch (see `ShadingPoint::leaves_toward`).
+        if sp.flags.transmission() {
+            for s in samples.iter() {
+                bsdf_records.push::<true>(s.as_ref(), records, deferred.as_deref_mut());
+            }
+        } else {
+            for s in samples.iter() {
+                bsdf_records.push::<false>(s.as_ref(), records, deferred.as_deref_mut());
+            }
         }
     });
 }
@@ -357,13 +368,30 @@ impl<'a> BsdfRecords<'a> {
         }
     }
 
+    /// [`push`](Self::push) with the side test of the point's BSDF, chosen for this one
+    /// sample.
+    #[inline(always)]
+    pub(crate) fn push_any(
+        &self,
+        s: Option<&BsdfSample>,
+        records: &mut Vec<SampleRecord>,
+        deferred: Option<&mut DeferredLookups>,
+    ) {
+        if self.sp.flags.transmission() {
+            self.push::<true>(s, records, deferred);
+        } else {
+            self.push::<false>(s, records, deferred);
+        }
+    }
+
     /// Appends the record of BSDF sample `s` (`None`: no direction drawn), as
     /// [`draw_bsdf_samples`] describes. Inlined into its two loops (one point's samples, a
-    /// packet's points).
+    /// packet's points). `TRANSMITS` is the BSDF's `transmission` flag
+    /// ([`ShadingPoint::leaves_toward`]).
     #[inline(always)]
-    pub(crate) fn push(
+    pub(crate) fn push<const TRANSMITS: bool>(
         &self,
-        s: Option<BsdfSample>,
+        s: Option<&BsdfSample>,
         records: &mut Vec<SampleRecord>,
         deferred: Option<&mut DeferredLookups>,
     ) {
@@ -398,27 +426,27 @@ impl<'a> BsdfRecords<'a> {
                 black
             }
         };
-        if !sp.reflects_toward(wi) {
+        if !sp.leaves_toward::<TRANSMITS>(wi, s.wi) {
             records.push(black());
             return;
         }
         match reaches_light(scene, light, light_shape, &ray, &sp.hit) {
             Reached::Nothing => records.push(black()),
-            Reached::Surface(hit, le) => records.push(reached_record(&s, le, || {
+            Reached::Surface(hit, le) => records.push(reached_record(s, le, || {
                 emitter.pdf_direction(&reference, wi, Some(&hit))
             })),
             Reached::Environment => match deferred {
                 Some(deferred) => {
                     deferred.0.push(DeferredLookup {
                         record: records.len(),
-                        sample: s,
+                        sample: *s,
                         wi,
                     });
                     records.push(SampleRecord::default());
                 }
                 None => {
                     let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
-                    records.push(reached_record(&s, le, || p_light));
+                    records.push(reached_record(s, le, || p_light));
                 }
             },
         }
@@ -452,9 +480,15 @@ pub fn draw_light_samples(
             return;
         };
         let wi = sp.frame.to_local(ls.wi);
-        records.push(light_record(scene, sp, light, &ls, densities, || {
-            sp.bsdf.eval_pdf(sp.wo, wi)
-        }));
+        records.push(light_record_any(
+            scene,
+            sp,
+            light,
+            &ls,
+            wi.z,
+            densities,
+            || sp.bsdf.eval_pdf(&sp.ctx, sp.wo, wi),
+        ));
         return;
     }
     // One point's batch, written out rather than through `BatchScratch::sample_light`: its
@@ -480,31 +514,71 @@ pub fn draw_light_samples(
         let values = &mut scratch.values;
         values.clear();
         values.resize(directions.len(), (Rgb::ZERO, 0.0));
-        sp.bsdf
-            .eval_pdf_batch(std::slice::from_ref(&sp.wo), directions, values);
-        for (ls, &value) in samples.iter().zip(values.iter()) {
-            records.push(match ls {
-                Some(ls) => light_record(scene, sp, light, ls, densities, || value),
-                None => SampleRecord::default(),
-            });
+        sp.bsdf.eval_pdf_batch(
+            std::slice::from_ref(&sp.ctx),
+            std::slice::from_ref(&sp.wo),
+            directions,
+            values,
+        );
+        // The side test chosen once for the batch (see `ShadingPoint::scatters_from_sample`).
+        if sp.flags.transmission() {
+            for ((ls, &value), wi) in samples.iter().zip(values.iter()).zip(directions.iter()) {
+                records.push(match ls {
+                    Some(ls) => {
+                        light_record::<true>(scene, sp, light, ls, wi.z, densities, || value)
+                    }
+                    None => SampleRecord::default(),
+                });
+            }
+        } else {
+            for (ls, &value) in samples.iter().zip(values.iter()) {
+                records.push(match ls {
+                    Some(ls) => {
+                        light_record::<false>(scene, sp, light, ls, 0.0, densities, || value)
+                    }
+                    None => SampleRecord::default(),
+                });
+            }
         }
     });
 }
 
-/// The record of light `light`'s sample `ls` at `sp`, given the BSDF's `eval_pdf` toward it
-/// (`eval_pdf()`, asked for only where the surface can reflect toward the sample or both
-/// densities are wanted).
+/// [`light_record`] with the side test of `sp`'s BSDF, chosen for this one record.
 #[inline(always)]
-pub(crate) fn light_record(
+pub(crate) fn light_record_any(
     scene: &Scene,
     sp: &ShadingPoint,
     light: usize,
     ls: &EmitterSample,
+    wi_local_z: f32,
+    densities: Densities,
+    eval_pdf: impl FnOnce() -> (Rgb, f32),
+) -> SampleRecord {
+    if sp.flags.transmission() {
+        light_record::<true>(scene, sp, light, ls, wi_local_z, densities, eval_pdf)
+    } else {
+        light_record::<false>(scene, sp, light, ls, wi_local_z, densities, eval_pdf)
+    }
+}
+
+/// The record of light `light`'s sample `ls` at `sp` (whose direction has z `wi_local_z` in
+/// the shading frame, read only if `TRANSMITS`, the BSDF's [`BsdfFlags::transmission`]),
+/// given the BSDF's `eval_pdf` toward it (`eval_pdf()`, asked for only where the surface can
+/// scatter light from the sample or both densities are wanted).
+///
+/// [`BsdfFlags::transmission`]: lumis_core::bsdf::BsdfFlags::transmission
+#[inline(always)]
+pub(crate) fn light_record<const TRANSMITS: bool>(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    ls: &EmitterSample,
+    wi_local_z: f32,
     densities: Densities,
     eval_pdf: impl FnOnce() -> (Rgb, f32),
 ) -> SampleRecord {
     let both = densities == Densities::Both;
-    let reflects = sp.reflects_toward_sample(ls);
+    let reflects = sp.scatters_from_sample::<TRANSMITS>(ls, wi_local_z);
     // Value and density in one call: an unoccluded sample needs both.
     let (f, p_bsdf) = if reflects || both {
         eval_pdf()

@@ -19,7 +19,7 @@
 use crate::estimator::SampleRecord;
 use crate::moments::minimise_on_grid;
 use glam::{DVec3, Vec2, Vec3};
-use lumis_core::bsdf::Bsdf;
+use lumis_core::bsdf::{Bsdf, BsdfContext};
 use lumis_core::math::{Frame, Rgb, luminance};
 use lumis_core::sampler::Sampler;
 use std::f64::consts::PI;
@@ -85,7 +85,7 @@ impl<'a> OnePoint<'a> {
                     point.nodes.push(Node {
                         weight: weight_theta * d_phi,
                         f: point.f(wi),
-                        p_bsdf: bsdf.pdf(wo, wi) as f64,
+                        p_bsdf: bsdf.pdf(&BsdfContext::FRONT, wo, wi) as f64,
                     });
                 }
             }
@@ -95,7 +95,7 @@ impl<'a> OnePoint<'a> {
 
     /// The integrand's luminance toward `wi`, inside the cone.
     fn f(&self, wi: Vec3) -> f64 {
-        luminance(self.bsdf.eval(self.wo, wi)) as f64 * self.radiance as f64
+        luminance(self.bsdf.eval(&BsdfContext::FRONT, self.wo, wi)) as f64 * self.radiance as f64
     }
 
     /// The light's density in its cone: 1 / (2π (1 − cos θ_max)).
@@ -299,7 +299,7 @@ impl<'a> OnePoint<'a> {
         let p_l = self.light_pdf() as f32;
         for _ in 0..n_bsdf {
             let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
-            let Some(s) = self.bsdf.sample(self.wo, u_lobe, u) else {
+            let Some(s) = self.bsdf.sample(&BsdfContext::FRONT, self.wo, u_lobe, u) else {
                 records.push(SampleRecord::default());
                 continue;
             };
@@ -318,8 +318,8 @@ impl<'a> OnePoint<'a> {
         for _ in 0..n_light {
             let wi = self.sample_cone(sampler.next_2d());
             records.push(SampleRecord {
-                f: self.bsdf.eval(self.wo, wi) * self.radiance,
-                p_bsdf: self.bsdf.pdf(self.wo, wi),
+                f: self.bsdf.eval(&BsdfContext::FRONT, self.wo, wi) * self.radiance,
+                p_bsdf: self.bsdf.pdf(&BsdfContext::FRONT, self.wo, wi),
                 p_light: p_l,
                 delta: false,
             });
@@ -389,22 +389,18 @@ mod tests {
     struct Lambert;
 
     impl Bsdf for Lambert {
-        fn eval(&self, _wo: Vec3, wi: Vec3) -> Rgb {
+        fn eval(&self, _ctx: &BsdfContext, _wo: Vec3, wi: Vec3) -> Rgb {
             Rgb::splat(wi.z.max(0.0) / std::f32::consts::PI)
         }
-        fn pdf(&self, _wo: Vec3, wi: Vec3) -> f32 {
+        fn pdf(&self, _ctx: &BsdfContext, _wo: Vec3, wi: Vec3) -> f32 {
             cosine_hemisphere_pdf(wi.z)
         }
-        fn sample(&self, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        fn sample(&self, ctx: &BsdfContext, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
             let wi = square_to_cosine_hemisphere(u);
-            lumis_core::bsdf::sample_from_pdf(self, wo, wi)
+            lumis_core::bsdf::sample_from_pdf(self, ctx, wo, wi)
         }
         fn flags(&self) -> BsdfFlags {
-            BsdfFlags {
-                diffuse: true,
-                glossy: false,
-                delta: false,
-            }
+            BsdfFlags::DIFFUSE_REFLECTION
         }
     }
 

@@ -37,7 +37,7 @@ pub fn pilot_sampler(scene: &Scene, pixel: UVec2) -> Sampler {
 /// What a pixel's camera sample 0 hit, for filters that pool only similar neighbours.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Surface {
-    /// Index of the BSDF (`scene.bsdfs`).
+    /// Index of the BSDF seen there (`scene.bsdfs`).
     pub bsdf: u32,
     /// Shading normal, turned toward the viewer.
     pub normal: Vec3,
@@ -170,7 +170,7 @@ fn pilot_pixel<T>(
     let hit = scene.intersect(&ray)?;
     let point = ShadingPoint::new(scene, hit, -ray.direction);
     let surface = Surface {
-        bsdf: scene.shape_bsdf[hit.shape as usize],
+        bsdf: scene.shape_bsdf[hit.shape as usize][point.ctx.side as usize],
         normal: point.frame.to_world(Vec3::Z),
         depth: hit.t * ray.direction.length(),
     };

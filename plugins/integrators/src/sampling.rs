@@ -12,7 +12,7 @@ use crate::aovs::LightTally;
 use crate::batch::BatchScratch;
 use crate::estimator::{
     BSDF_SAMPLE_NUMBERS, BsdfRecords, DeferredLookups, Densities, SampleRecord, draw_bsdf_samples,
-    draw_light_samples, light_record,
+    draw_light_samples, light_record_any,
 };
 use crate::phase::{Observer, Phase, PhaseRole, SampleSplit};
 use crate::shading_point::ShadingPoint;
@@ -243,29 +243,32 @@ impl<'a> LightSampling<'a> {
                     let numbers = (sampling.sampler.next_1d(), sampling.sampler.next_2d());
                     scratch.owners.push(k);
                     scratch.wo.push(sampling.point.wo);
+                    scratch.contexts.push(sampling.point.ctx);
                     scratch.bsdf_numbers.push(numbers);
                 }
             }
             let point_of = |k: usize| samplings[k].as_ref().map(|s| s.point);
             scratch.sample_bsdfs(|k| point_of(k).expect("an owner has a sampling").bsdf);
-            for (&owner, &s) in scratch.owners.iter().zip(&scratch.bsdf_samples) {
+            for (&owner, s) in scratch.owners.iter().zip(&scratch.bsdf_samples) {
                 let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
                 let PhaseBuffers {
                     records, deferred, ..
                 } = &mut *sampling.buffers;
-                BsdfRecords::new(scene, sampling.point, light, densities).push(
-                    s,
+                BsdfRecords::new(scene, sampling.point, light, densities).push_any(
+                    s.as_ref(),
                     records,
                     Some(deferred),
                 );
             }
             scratch.owners.clear();
             scratch.wo.clear();
+            scratch.contexts.clear();
             for (k, sampling) in samplings.iter_mut().enumerate() {
                 let Some(sampling) = sampling else { continue };
                 for _ in 0..splits[k].n_light {
                     scratch.owners.push(k);
                     scratch.wo.push(sampling.point.wo);
+                    scratch.contexts.push(sampling.point.ctx);
                     scratch.references.push(ReferencePoint {
                         position: sampling.point.hit.position,
                     });
@@ -276,15 +279,19 @@ impl<'a> LightSampling<'a> {
             scratch.sample_light(scene.emitters[light].as_ref(), |k| {
                 point_of(k).expect("an owner has a sampling")
             });
-            for ((&owner, ls), &value) in scratch
+            for (((&owner, ls), &value), wi) in scratch
                 .owners
                 .iter()
                 .zip(&scratch.light_samples)
                 .zip(&scratch.values)
+                .zip(&scratch.directions)
             {
                 let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
                 sampling.buffers.records.push(match ls {
-                    Some(ls) => light_record(scene, sampling.point, light, ls, densities, || value),
+                    Some(ls) => {
+                        let point = sampling.point;
+                        light_record_any(scene, point, light, ls, wi.z, densities, || value)
+                    }
                     None => SampleRecord::default(),
                 });
             }

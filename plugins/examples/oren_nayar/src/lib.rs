@@ -2,30 +2,34 @@
 //! a run-time plugin library to show how third parties extend lumis without rebuilding it.
 //!
 //! Parameters:
-//! - `reflectance` (rgb, default (0.5, 0.5, 0.5), in [0, 1]): albedo of the facets.
+//! - `reflectance` (rgb or texture, default (0.5, 0.5, 0.5), in [0, 1]): albedo of the facets;
+//!   a texture written inline makes it vary over the surface.
 //! - `sigma` (float, default 20, degrees, in [0, 90]): standard deviation of the facet slopes;
 //!   0 is Lambertian.
 //!
-//! Sampling: cosine-weighted hemisphere. Build with `cargo build -p lumis-oren-nayar` and list
+//! Sampling: cosine-weighted hemisphere. Written the simple scalar way (`eval`, `pdf`,
+//! `sample`; the batch methods are the interface's defaults), reading its reflectance at the
+//! shading point's texture coordinates. Build with `cargo build -p lumis-oren-nayar` and list
 //! the resulting `liblumis_oren_nayar.so` under a scene's `plugins`.
 
 use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{Bsdf, BsdfFlags, BsdfSample, sample_from_pdf};
+use lumis_core::bsdf::{Bsdf, BsdfContext, BsdfFlags, BsdfSample, sample_from_pdf};
 use lumis_core::math::Rgb;
 use lumis_core::math::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::BsdfPlugin;
+use lumis_core::texture::{RgbSource, Textured};
 use std::f32::consts::FRAC_1_PI;
 use std::sync::Arc;
 
 pub struct OrenNayar {
-    reflectance: Rgb,
+    reflectance: Textured<Rgb>,
     a: f32,
     b: f32,
 }
 
 impl OrenNayar {
-    pub fn new(reflectance: Rgb, sigma_degrees: f32) -> Self {
+    pub fn new(reflectance: Textured<Rgb>, sigma_degrees: f32) -> Self {
         let s2 = sigma_degrees.to_radians().powi(2);
         OrenNayar {
             reflectance,
@@ -36,7 +40,7 @@ impl OrenNayar {
 }
 
 impl Bsdf for OrenNayar {
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Rgb::ZERO;
         }
@@ -55,10 +59,10 @@ impl Bsdf for OrenNayar {
             (sin_i, sin_o / wo.z)
         };
         let f = self.a + self.b * cos_dphi.max(0.0) * sin_alpha * tan_beta;
-        self.reflectance * (FRAC_1_PI * f * wi.z)
+        self.reflectance.value_at(ctx.uv) * (FRAC_1_PI * f * wi.z)
     }
 
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 {
             0.0
         } else {
@@ -66,18 +70,20 @@ impl Bsdf for OrenNayar {
         }
     }
 
-    fn sample(&self, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    fn sample(&self, ctx: &BsdfContext, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }
-        sample_from_pdf(self, wo, square_to_cosine_hemisphere(u))
+        sample_from_pdf(self, ctx, wo, square_to_cosine_hemisphere(u))
     }
 
+    /// Its texture, if it has one, makes it vary over the surface (the scene loader would add
+    /// the flag for a texture it handed out; saying it here keeps the BSDF right on its own).
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags {
-            diffuse: true,
-            glossy: false,
-            delta: false,
+        if self.reflectance.varies() {
+            BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::SPATIALLY_VARYING
+        } else {
+            BsdfFlags::DIFFUSE_REFLECTION
         }
     }
 }
@@ -85,12 +91,12 @@ impl Bsdf for OrenNayar {
 static PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "reflectance",
-        kind: ParamKind::Rgb {
+        kind: ParamKind::RgbOrTexture {
             default: Some([0.5, 0.5, 0.5]),
             max: 1.0,
         },
         unit: "",
-        description: "albedo of the facets, per channel in [0, 1]",
+        description: "albedo of the facets, per channel in [0, 1], or a texture",
     },
     ParamSpec {
         name: "sigma",
@@ -106,7 +112,7 @@ static PARAMS: &[ParamSpec] = &[
 
 fn create(params: &mut Params) -> Result<Arc<dyn Bsdf>, PluginError> {
     Ok(Arc::new(OrenNayar::new(
-        params.rgb("reflectance")?,
+        params.rgb_or_texture("reflectance")?,
         params.float("sigma")?,
     )))
 }

@@ -1,0 +1,228 @@
+//! `checkerboard`: Mitsuba 3's procedural checkerboard, two colours alternating over the unit
+//! squares of texture space.
+//!
+//! Parameters:
+//! - `color0` (rgb, default (0.4, 0.4, 0.4), each channel in [0, 1e6]): the colour of the
+//!   squares where ⌊2u⌋ and ⌊2v⌋ have the same parity (the square at the origin).
+//! - `color1` (rgb, default (0.2, 0.2, 0.2), each channel in [0, 1e6]): the colour of the others.
+//! - `to_uv` (uv transform, default identity): the map applied to the texture coordinates first.
+//!
+//! With (u, v) = `to_uv`(uv), a point is in `color0` where u − ⌊u⌋ > ½ and v − ⌊v⌋ > ½ agree,
+//! else in `color1`: each unit square of texture space holds 2 × 2 checks. The value of a
+//! number parameter (`eval_1`) is the mean of the colour's channels, with the colours the other
+//! way round, as Mitsuba 3.9's `eval_1` has them (`color0` where they disagree): a checkerboard
+//! roughness in a converted Mitsuba scene matches Mitsuba's image. Mitsuba also accepts
+//! textures for the two colours; these are constants.
+
+use glam::Vec2;
+use lumis_core::math::Rgb;
+use lumis_core::math::lanes::{Lanes, V2, V3};
+use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::registry::TexturePlugin;
+use lumis_core::texture::{Texture, TextureLanes, UvTransform, eval_1_in_lanes, eval_in_lanes};
+use std::sync::Arc;
+
+pub struct Checkerboard {
+    color0: Rgb,
+    color1: Rgb,
+    to_uv: UvTransform,
+}
+
+impl Checkerboard {
+    pub fn new(color0: Rgb, color1: Rgb, to_uv: UvTransform) -> Self {
+        Checkerboard {
+            color0,
+            color1,
+            to_uv,
+        }
+    }
+
+    /// Where each lane's point is in a `color0` check, by `eval`'s rule.
+    #[inline(always)]
+    fn in_color0<L: Lanes>(&self, uv: V2<L>) -> L::Mask {
+        let uv = self.to_uv.apply(uv);
+        let half = L::splat(0.5);
+        let upper_u = (uv.x - uv.x.floor()).gt(half);
+        let upper_v = (uv.y - uv.y.floor()).gt(half);
+        (upper_u & upper_v) | !(upper_u | upper_v)
+    }
+}
+
+/// The mean of a colour's channels, as Mitsuba's `eval_1` of a colour.
+fn mean(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) / 3.0
+}
+
+impl TextureLanes for Checkerboard {
+    #[inline(always)]
+    fn eval_lanes<L: Lanes>(&self, uv: V2<L>) -> V3<L> {
+        V3::select(
+            self.in_color0(uv),
+            V3::splat(self.color0),
+            V3::splat(self.color1),
+        )
+    }
+
+    /// Mitsuba's `eval_1`: `color0` where `eval` has `color1`.
+    #[inline(always)]
+    fn eval_1_lanes<L: Lanes>(&self, uv: V2<L>) -> L {
+        L::select(
+            self.in_color0(uv),
+            L::splat(mean(self.color1)),
+            L::splat(mean(self.color0)),
+        )
+    }
+}
+
+impl Texture for Checkerboard {
+    fn eval(&self, uv: Vec2) -> Rgb {
+        self.eval_lanes::<f32>(V2::splat(uv)).lane(0)
+    }
+
+    fn eval_1(&self, uv: Vec2) -> f32 {
+        self.eval_1_lanes::<f32>(V2::splat(uv))
+    }
+
+    fn range(&self) -> [f32; 2] {
+        let (least, most) = (self.color0.min(self.color1), self.color0.max(self.color1));
+        [least.min_element(), most.max_element()]
+    }
+
+    fn eval_batch(&self, uv: &[Vec2], out: &mut [Rgb]) {
+        eval_in_lanes(self, uv, out);
+    }
+
+    fn eval_1_batch(&self, uv: &[Vec2], out: &mut [f32]) {
+        eval_1_in_lanes(self, uv, out);
+    }
+}
+
+/// The plugin's name in scene files, and its parameters' names.
+pub const NAME: &str = "checkerboard";
+pub const COLOR0: &str = "color0";
+pub const COLOR1: &str = "color1";
+pub const TO_UV: &str = "to_uv";
+
+static PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: COLOR0,
+        kind: ParamKind::Rgb {
+            default: Some([0.4, 0.4, 0.4]),
+            max: 1e6,
+        },
+        unit: "",
+        description: "colour of the checks where the halves of u and v agree (the one at the origin)",
+    },
+    ParamSpec {
+        name: COLOR1,
+        kind: ParamKind::Rgb {
+            default: Some([0.2, 0.2, 0.2]),
+            max: 1e6,
+        },
+        unit: "",
+        description: "colour of the other checks",
+    },
+    ParamSpec {
+        name: TO_UV,
+        kind: ParamKind::UvTransform,
+        unit: "",
+        description: "map of the texture coordinates applied first (Mitsuba's to_uv): 2 × 2 checks per unit square",
+    },
+];
+
+fn create(params: &mut Params) -> Result<Arc<dyn Texture>, PluginError> {
+    let color0 = params.rgb(COLOR0)?;
+    let color1 = params.rgb(COLOR1)?;
+    let to_uv = params.uv_transform(TO_UV)?;
+    Ok(Arc::new(Checkerboard::new(color0, color1, to_uv)))
+}
+
+inventory::submit! {
+    TexturePlugin {
+        name: NAME,
+        description: "Mitsuba's checkerboard: two colours alternating in 2 × 2 checks per unit square of texture space",
+        params: PARAMS,
+        create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec4;
+
+    /// Mitsuba's rule at points of each check, on both sides of the edges at ½ and 1, and
+    /// beyond [0, 1]² (the pattern repeats); `eval_1` has the colours the other way round.
+    #[test]
+    fn checks_follow_mitsubas_rule() {
+        let (c0, c1) = (Rgb::new(0.1, 0.2, 0.3), Rgb::splat(0.8));
+        let board = Checkerboard::new(c0, c1, UvTransform::IDENTITY);
+        for (uv, first) in [
+            ((0.25, 0.25), true),
+            ((0.75, 0.75), true),
+            ((0.75, 0.25), false),
+            ((0.25, 0.75), false),
+            ((0.5, 0.5), true),
+            ((0.500_001, 0.25), false),
+            ((1.25, -0.25), false),
+            ((-0.25, -0.25), true),
+            ((3.75, 7.75), true),
+        ] {
+            let uv = Vec2::from(uv);
+            let (colour, number) = if first {
+                (c0, mean(c1))
+            } else {
+                (c1, mean(c0))
+            };
+            assert_eq!(board.eval(uv), colour, "{uv}");
+            assert_eq!(board.eval_1(uv), number, "{uv}");
+        }
+        assert_eq!(board.range(), [0.1, 0.8]);
+    }
+
+    /// `to_uv` applies first: scaled by 2, the checks are half as large.
+    #[test]
+    fn to_uv_maps_the_coordinates_first() {
+        let scale = UvTransform {
+            rows: [[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]],
+        };
+        let board = Checkerboard::new(Rgb::ZERO, Rgb::ONE, scale);
+        assert_eq!(board.eval(Vec2::new(0.3, 0.1)), Rgb::ONE);
+        assert_eq!(board.eval(Vec2::new(0.3, 0.3)), Rgb::ZERO);
+    }
+
+    /// The batch methods give what one call each gives, bit for bit, four lanes wide and as
+    /// wide as the processor has, for batches of every remainder.
+    #[test]
+    fn batches_give_what_single_calls_give() {
+        let board = Checkerboard::new(
+            Rgb::new(0.3, 0.6, 0.9),
+            Rgb::new(0.05, 0.5, 0.0),
+            UvTransform {
+                rows: [[3.0, 0.5, 0.1], [-0.5, 2.0, 0.7]],
+            },
+        );
+        let points: Vec<Vec2> = (0..37)
+            .map(|i| Vec2::new(i as f32 * 0.137 - 2.0, (i * i) as f32 * 0.011 - 1.0))
+            .collect();
+        for n in [1, 3, 4, 5, 8, 9, 37] {
+            let mut colours = vec![Rgb::NAN; n];
+            let mut numbers = vec![f32::NAN; n];
+            board.eval_batch(&points[..n], &mut colours);
+            board.eval_1_batch(&points[..n], &mut numbers);
+            for (k, &uv) in points[..n].iter().enumerate() {
+                assert_eq!(colours[k], board.eval(uv), "{n}: {uv}");
+                assert_eq!(
+                    numbers[k].to_bits(),
+                    board.eval_1(uv).to_bits(),
+                    "{n}: {uv}"
+                );
+            }
+        }
+        let four = V2::<Vec4>::from_fn(|i| points[i]);
+        let colours = board.eval_lanes(four);
+        for (i, &uv) in points[..4].iter().enumerate() {
+            assert_eq!(colours.lane(i), board.eval(uv));
+        }
+    }
+}
