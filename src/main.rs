@@ -1,6 +1,7 @@
 //! The `lumis` command-line program.
 
 mod interrupt;
+mod render_command;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -8,7 +9,6 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lumis::image_io;
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 #[derive(Parser)]
 #[command(
@@ -24,13 +24,15 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene to an EXR (colour and AOV layers) and a PNG preview beside it.
-    Render(RenderArgs),
+    Render(Box<render_command::RenderArgs>),
     /// Measure the speed/accuracy trade of integrators on scenes: K runs each give sampling and
     /// estimator variance, error against a reference, time and efficiency, written as
     /// results.csv, results.md, plots and image panels in --out as each row finishes.
     Study(Box<StudyArgs>),
     /// Merge the shards of a render (`lumis render --shard i/n`, all n of them, in any order)
-    /// into the EXR and previews the one-process render writes, bit for bit.
+    /// into the EXR and previews the one-process render writes, bit for bit. The shards of a
+    /// render in passes merge after each pass: until the last, the merged state is written too,
+    /// and the next pass's shards resume from it.
     Merge {
         /// The shard files.
         #[arg(required = true)]
@@ -38,6 +40,10 @@ enum Command {
         /// Output EXR (the PNG previews are written beside it). Default: the scene's output.
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Where the merged state of a render in passes with more passes to go is written
+        /// (default: beside the EXR, NAME.lshard).
+        #[arg(long, value_name = "FILE")]
+        state: Option<PathBuf>,
         /// No summary line.
         #[arg(short, long)]
         quiet: bool,
@@ -72,47 +78,6 @@ enum Command {
         #[arg(long)]
         markdown: bool,
     },
-}
-
-#[derive(clap::Args)]
-struct RenderArgs {
-    /// The scene file (RON).
-    scene: PathBuf,
-    /// Output EXR; the PNG preview is written beside it with the extension .png.
-    /// Default: the film's `output`, or the scene's name + .exr in the current directory.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
-    /// Camera samples per pixel (overrides sampler.spp).
-    #[arg(long)]
-    spp: Option<u32>,
-    /// Random seed (overrides sampler.seed).
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Worker threads (default: one per core; more than the machine's hardware threads are
-    /// reduced to that number, which a CPU-bound render cannot exceed usefully).
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
-    /// Memory the render may use, e.g. 8G or 512M, or `none` (default: the memory available,
-    /// MemAvailable in /proc/meminfo; or the LUMIS_MEMORY_LIMIT environment variable). A scene
-    /// estimated to need more is refused before anything large is allocated.
-    #[arg(long, value_name = "SIZE")]
-    memory_limit: Option<String>,
-    /// Override any scene value by its path, e.g. --set integrator.type=balance
-    /// --set integrator.samples=64 --set film.width=128 (repeatable).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    overrides: Vec<String>,
-    /// Exposure of the PNG preview in stops (overrides film.exposure).
-    #[arg(long)]
-    exposure: Option<f32>,
-    /// No progress bar and no summary line. (When stderr is not a terminal, progress is a plain
-    /// line `progress: K of N pixels` at each tenth of the image.)
-    #[arg(short, long)]
-    quiet: bool,
-    /// Render only shard I of N (0 ≤ I < N): every Nth tile, with the seeds of the whole render,
-    /// written as sums (--output, default NAME.shard-I-of-N.lshard beside the EXR) for
-    /// `lumis merge`.
-    #[arg(long, value_name = "I/N")]
-    shard: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -214,13 +179,17 @@ fn main() {
     let cli = Cli::parse();
     lumis::link_plugins();
     let result = match cli.command {
-        Command::Render(args) => render(args),
+        Command::Render(args) => {
+            let threads = worker_threads(args.threads());
+            render_command::render(*args, threads)
+        }
         Command::Study(args) => study(*args),
         Command::Merge {
             shards,
             output,
+            state,
             quiet,
-        } => merge(&shards, output.as_deref(), quiet),
+        } => merge(&shards, output.as_deref(), state.as_deref(), quiet),
         Command::Merl { bsdf, output } => merl(&bsdf, &output),
         Command::Import {
             scene,
@@ -254,7 +223,7 @@ fn main() {
 /// The worker thread count to use for `--threads requested` (0: one per core). A render is
 /// CPU-bound: threads beyond the hardware threads only add switching (10 000 of them made a
 /// 0.02 s render take minutes), so a larger request is reduced, with a warning.
-fn worker_threads(requested: usize) -> usize {
+pub(crate) fn worker_threads(requested: usize) -> usize {
     let available = std::thread::available_parallelism().map_or(1, |n| n.get());
     if requested > available {
         eprintln!(
@@ -472,20 +441,40 @@ fn study(args: StudyArgs) -> Result<()> {
     Ok(())
 }
 
-fn merge(shards: &[PathBuf], output: Option<&std::path::Path>, quiet: bool) -> Result<()> {
+fn merge(
+    shards: &[PathBuf],
+    output: Option<&std::path::Path>,
+    state: Option<&std::path::Path>,
+    quiet: bool,
+) -> Result<()> {
     let start = std::time::Instant::now();
-    let written = lumis::shards::merge(shards, output)?;
+    let merged = lumis::shards::merge(shards, output, state)?;
     if !quiet {
-        eprintln!(
-            "merged {} shards in {:.3} s -> {}",
-            shards.len(),
-            start.elapsed().as_secs_f64(),
-            written
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
+        let files = merged
+            .files
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
+        let error = merged.history.error().map_or(String::new(), |e| {
+            format!(", error {}", lumis::render_files::error_text(&e))
+        });
+        match &merged.state {
+            None => eprintln!(
+                "merged {} shards in {:.3} s{error} -> {files}",
+                shards.len(),
+                start.elapsed().as_secs_f64(),
+            ),
+            Some(state) => eprintln!(
+                "merged {} shards of pass {} ({} spp{error}) in {:.3} s -> {files}, {}; render the next pass's shards with --resume {}",
+                shards.len(),
+                merged.history.passes.len(),
+                merged.history.samples(),
+                start.elapsed().as_secs_f64(),
+                state.display(),
+                state.display()
+            ),
+        }
     }
     Ok(())
 }
@@ -503,210 +492,5 @@ fn merl(spec: &str, output: &std::path::Path) -> Result<()> {
     lumis::bsdfs::measured::write_merl(output, |wi, wo| bsdf.eval(&front, wo, wi) / wi.z)
         .map_err(anyhow::Error::msg)?;
     eprintln!("wrote {}", output.display());
-    Ok(())
-}
-
-fn render(args: RenderArgs) -> Result<()> {
-    let mut overrides = args.overrides.clone();
-    if let Some(spp) = args.spp {
-        overrides.push(format!("sampler.spp={spp}"));
-    }
-    if let Some(seed) = args.seed {
-        overrides.push(format!("sampler.seed={seed}"));
-    }
-    if let Some(limit) = &args.memory_limit {
-        lumis::limits::set_memory_limit(limit, "--memory-limit").map_err(anyhow::Error::msg)?;
-    }
-    let shard = args
-        .shard
-        .as_deref()
-        .map(lumis::render::Shard::parse)
-        .transpose()
-        .map_err(anyhow::Error::msg)?;
-    let threads = worker_threads(args.threads);
-    let load_start = std::time::Instant::now();
-    let mut loaded = lumis::scene::load::load_scene(&args.scene, &overrides)?;
-    let load_time = load_start.elapsed();
-    for warning in &loaded.warnings {
-        eprintln!("warning: {}: {warning}", args.scene.display());
-    }
-    if let Some(shard) = shard {
-        return render_shard(&args, overrides, loaded, shard, threads);
-    }
-    let exr_path = args.output.unwrap_or_else(|| loaded.scene.output.clone());
-    lumis::render_files::check_exr_path(&exr_path).map_err(anyhow::Error::msg)?;
-    let exposure = args.exposure.unwrap_or(loaded.scene.exposure);
-    // Every output is checked before the render, not found unwritable after it.
-    let preview_paths: Vec<PathBuf> = loaded
-        .integrator
-        .aovs(&loaded.scene)
-        .iter()
-        .filter(|a| a.preview)
-        .map(|a| exr_path.with_extension(format!("{}.png", a.name)))
-        .collect();
-    let png_path = exr_path.with_extension("png");
-    for path in [&exr_path, &png_path].into_iter().chain(&preview_paths) {
-        image_io::check_writable(path)?;
-    }
-
-    loaded.integrator.preprocess(&loaded.scene);
-    let window = loaded.scene.window;
-    let pixels = window.width as u64 * window.height as u64;
-    let terminal = std::io::stderr().is_terminal();
-    let bar = if args.quiet || !terminal {
-        ProgressBar::hidden()
-    } else {
-        let bar = ProgressBar::with_draw_target(Some(pixels), ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta})",
-            )
-            .context("progress bar template")?,
-        );
-        bar
-    };
-    // Ctrl-C (or SIGTERM) stops the render; what is finished is written, marked partial.
-    let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
-    // Without a terminal there is no progress bar: a line when the render starts and at each
-    // tenth, for logs (and for tests that interrupt a render once it runs).
-    let log_progress = !args.quiet && !terminal;
-    if log_progress {
-        eprintln!(
-            "rendering {} ({}x{}, {} spp)",
-            args.scene.display(),
-            window.width,
-            window.height,
-            loaded.scene.spp
-        );
-    }
-    let pixels_done = AtomicU64::new(0);
-    let on_tile = |n: u64| {
-        bar.inc(n);
-        if log_progress {
-            let before = pixels_done.fetch_add(n, Ordering::Relaxed);
-            let tenth = (before + n) * 10 / pixels.max(1);
-            if tenth > before * 10 / pixels.max(1) && tenth < 10 {
-                eprintln!("rendered {}%", tenth * 10);
-            }
-        }
-    };
-    let (film, stats) = lumis::render::render_cancellable(
-        &loaded.scene,
-        loaded.integrator.as_ref(),
-        threads,
-        &on_tile,
-        &cancel,
-    )
-    .context("cannot start the render threads")?;
-    bar.finish_and_clear();
-
-    let integrator = &loaded.description.integrator;
-    let metadata = lumis::render_files::metadata(
-        &args.scene.display().to_string(),
-        integrator,
-        loaded.scene.spp,
-        loaded.scene.seed,
-        &stats,
-    );
-    let written = lumis::render_files::write(&film, &exr_path, exposure, &metadata)?;
-
-    if stats.partial() {
-        eprintln!(
-            "interrupted: wrote a partial image ({} of {} pixels) to {} after {}",
-            stats.pixels_done,
-            stats.pixels_total,
-            exr_path.display(),
-            interrupt::signal_name()
-        );
-        std::process::exit(interrupt::exit_code());
-    }
-    if !args.quiet {
-        let secs = stats.wall_time.as_secs_f64();
-        eprintln!(
-            "{} ({}x{}, {} spp, {}, {} threads): loaded in {:.3} s, rendered in {:.3} s, {:.3} M samples/s, {:.2} M rays/s -> {}",
-            args.scene.display(),
-            window.width,
-            window.height,
-            loaded.scene.spp,
-            integrator.kind,
-            stats.threads,
-            load_time.as_secs_f64(),
-            secs,
-            stats.camera_samples as f64 / secs / 1e6,
-            stats.rays as f64 / secs / 1e6,
-            written
-                .all()
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    Ok(())
-}
-
-/// `lumis render --shard`: renders the shard's tiles and writes their sums.
-fn render_shard(
-    args: &RenderArgs,
-    overrides: Vec<String>,
-    mut loaded: lumis::scene::load::LoadedScene,
-    shard: lumis::render::Shard,
-    threads: usize,
-) -> Result<()> {
-    let path = args
-        .output
-        .clone()
-        .unwrap_or_else(|| lumis::shards::default_path(&loaded.scene.output, shard));
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
-    {
-        anyhow::bail!(
-            "a shard holds sums for `lumis merge`, not an image: name it .lshard, not `{}`",
-            path.display()
-        );
-    }
-    image_io::check_writable(&path)?;
-    let scene_path = std::path::absolute(&args.scene)
-        .with_context(|| format!("cannot resolve `{}`", args.scene.display()))?;
-    loaded.integrator.preprocess(&loaded.scene);
-    let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
-    let (sums, stats) = lumis::render::render_shard(
-        &loaded.scene,
-        loaded.integrator.as_ref(),
-        threads,
-        shard,
-        &|_| {},
-        &cancel,
-    )
-    .context("cannot start the render threads")?;
-    if stats.partial() {
-        eprintln!(
-            "interrupted after {}: shard {shard} not written",
-            interrupt::signal_name()
-        );
-        std::process::exit(interrupt::exit_code());
-    }
-    let file = lumis::shards::ShardFile {
-        scene_name: args.scene.display().to_string(),
-        scene_hash: lumis::shards::file_hash(&scene_path)?,
-        scene_path,
-        overrides,
-        exposure: args.exposure.unwrap_or(loaded.scene.exposure),
-        shard,
-        stats,
-        sums,
-    };
-    file.write(&path)?;
-    if !args.quiet {
-        eprintln!(
-            "{} shard {shard} ({} tiles, {} pixels): rendered in {:.3} s -> {}",
-            args.scene.display(),
-            stats.tiles_total,
-            stats.pixels_total,
-            stats.wall_time.as_secs_f64(),
-            path.display()
-        );
-    }
     Ok(())
 }

@@ -1,24 +1,31 @@
-//! Renders split over processes: `lumis render SCENE --shard i/n` writes the sums of its tiles
-//! (a [`ShardFile`]), and `lumis merge` adds the shards' sums and resolves them into the image
-//! the one-process render writes, bit for bit (docs/distributed.md).
+//! Renders split over processes, and renders saved to continue: `lumis render SCENE --shard i/n`
+//! writes the sums of its tiles (a [`ShardFile`]), and `lumis merge` adds the shards' sums and
+//! resolves them into the image the one-process render writes, bit for bit
+//! (docs/distributed.md); an interrupted render in passes saves its whole state in the same
+//! format (shard 0 of 1), which `lumis render --resume` continues.
 //!
-//! A shard file holds, per pixel of the window, the camera samples summed, Σ colour (f64) and
-//! the integrator's own sums (f64), plus what is needed to rebuild the integrator that resolves
-//! them: the scene file and the overrides of the render.
+//! A file holds the render's state ([`RenderState`]: per pixel of the window the camera samples
+//! summed, Σ u·colour, Σ u and the half-images (f64), the integrator's own sums (f64); the passes
+//! so far and a pass cut short), what the render was asked for ([`Settings`]) and what is needed
+//! to rebuild the integrator that resolves it: the scene file and the overrides of the render.
 
 use crate::binary::{Reader, Writer};
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
+use lumis_core::error_estimate::{ErrorEstimate, Metric};
 use lumis_core::output::Window;
+use lumis_core::passes::{History, PassRecord, PlannedPass, Settings, Stop, Stopping};
+use lumis_core::progressive::RenderState;
 use lumis_core::render::{FilmSums, RenderStats, Shard};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 const MAGIC: &[u8; 8] = b"LUMISSHD";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 const WHAT: &str = "render shard";
 
-/// One shard of a render, as written by `lumis render --shard`.
+/// One shard of a render, or a whole render's state, as written by `lumis render --shard` and
+/// by an interrupted render in passes.
 #[derive(Clone, Debug)]
 pub struct ShardFile {
     /// The scene file as the user named it (for the EXR's metadata) and its absolute path (to
@@ -34,7 +41,141 @@ pub struct ShardFile {
     pub exposure: f32,
     pub shard: Shard,
     pub stats: RenderStats,
-    pub sums: FilmSums,
+    pub settings: Settings,
+    pub state: RenderState,
+}
+
+fn write_pass(w: &mut Writer, pass: &PlannedPass) {
+    w.u32(pass.end);
+    w.u64(pass.planned);
+}
+
+fn read_pass(r: &mut Reader) -> Result<PlannedPass> {
+    Ok(PlannedPass {
+        end: r.u32("a pass's samples")?,
+        planned: r.u64("a pass's planned samples")?,
+    })
+}
+
+fn metric_code(metric: Metric) -> u32 {
+    match metric {
+        Metric::RelMse => 0,
+        Metric::Mse => 1,
+    }
+}
+
+fn read_metric(r: &mut Reader) -> Result<Metric> {
+    match r.u32("the error metric")? {
+        0 => Ok(Metric::RelMse),
+        1 => Ok(Metric::Mse),
+        other => Err(r.problem(format!("an unknown error metric {other}"))),
+    }
+}
+
+/// Stops are written as their names (an empty name: none).
+fn write_stop(w: &mut Writer, stop: Option<Stop>) {
+    w.str(stop.map_or("", Stop::name));
+}
+
+fn read_stop(r: &mut Reader) -> Result<Option<Stop>> {
+    let name = r.str("a stop")?;
+    if name.is_empty() {
+        return Ok(None);
+    }
+    Stop::parse(&name)
+        .map(Some)
+        .ok_or_else(|| r.problem(format!("an unknown stop `{name}`")))
+}
+
+fn write_settings(w: &mut Writer, settings: &Settings) {
+    match &settings.stopping {
+        Stopping::Samples { spp, passes } => {
+            w.u32(0);
+            w.u32(*spp);
+            w.u32(*passes);
+        }
+        Stopping::Target {
+            error,
+            max_spp,
+            max_time,
+        } => {
+            w.u32(1);
+            w.f64(*error);
+            w.u32(*max_spp);
+            w.f64(max_time.unwrap_or(f64::NAN));
+        }
+        Stopping::Time { seconds, max_spp } => {
+            w.u32(2);
+            w.f64(*seconds);
+            w.u32(*max_spp);
+        }
+        Stopping::Replay(passes) => {
+            w.u32(3);
+            w.u64(passes.len() as u64);
+            passes.iter().for_each(|p| write_pass(w, p));
+        }
+    }
+    w.u32(metric_code(settings.metric));
+    w.f64(settings.confidence);
+}
+
+fn read_settings(r: &mut Reader) -> Result<Settings> {
+    let stopping = match r.u32("the kind of render")? {
+        0 => Stopping::Samples {
+            spp: r.u32("the samples")?,
+            passes: r.u32("the passes")?,
+        },
+        1 => Stopping::Target {
+            error: r.f64("the target error")?,
+            max_spp: r.u32("the cap on samples")?,
+            max_time: Some(r.f64("the cap on time")?).filter(|t| !t.is_nan()),
+        },
+        2 => Stopping::Time {
+            seconds: r.f64("the time")?,
+            max_spp: r.u32("the cap on samples")?,
+        },
+        3 => {
+            let n = r.u64("the replayed passes")?;
+            if n > u64::from(u32::MAX) {
+                return Err(r.problem(format!("{n} replayed passes")));
+            }
+            Stopping::Replay((0..n).map(|_| read_pass(r)).collect::<Result<_>>()?)
+        }
+        other => return Err(r.problem(format!("an unknown kind of render {other}"))),
+    };
+    Ok(Settings {
+        stopping,
+        metric: read_metric(r)?,
+        confidence: r.f64("the confidence")?,
+    })
+}
+
+fn write_error(w: &mut Writer, error: &Option<ErrorEstimate>) {
+    let Some(e) = error else {
+        w.u32(0);
+        return;
+    };
+    w.u32(1);
+    w.u32(metric_code(e.metric));
+    for v in [e.confidence, e.value, e.low, e.high, e.variance] {
+        w.f64(v);
+    }
+    w.u64(e.pixels);
+}
+
+fn read_error(r: &mut Reader) -> Result<Option<ErrorEstimate>> {
+    if r.u32("whether a pass has an error estimate")? == 0 {
+        return Ok(None);
+    }
+    Ok(Some(ErrorEstimate {
+        metric: read_metric(r)?,
+        confidence: r.f64("a confidence")?,
+        value: r.f64("an error")?,
+        low: r.f64("an error's lower bound")?,
+        high: r.f64("an error's upper bound")?,
+        variance: r.f64("an error's variance")?,
+        pixels: r.u64("an error's pixels")?,
+    }))
 }
 
 impl ShardFile {
@@ -57,7 +198,8 @@ impl ShardFile {
         w.u64(s.pixels_total);
         w.u32(s.tiles_done);
         w.u32(s.tiles_total);
-        let f = &self.sums;
+        write_settings(&mut w, &self.settings);
+        let f = &self.state.sums;
         for v in [
             f.full_width,
             f.full_height,
@@ -72,7 +214,28 @@ impl ShardFile {
         w.u32s(&f.samples);
         let color: Vec<f64> = f.color.iter().flat_map(|c| c.to_array()).collect();
         w.f64s(&color);
+        w.f64s(&f.weight);
+        let halves: Vec<f64> = f.halves.iter().flatten().copied().collect();
+        w.f64s(&halves);
         w.f64s(&f.sums);
+        let h = &self.state.history;
+        w.f64(h.mass);
+        w.f64(h.elapsed);
+        write_stop(&mut w, h.stopped);
+        w.u64(h.passes.len() as u64);
+        for record in &h.passes {
+            write_pass(&mut w, &record.pass);
+            w.f64(record.seconds);
+            write_error(&mut w, &record.error);
+        }
+        match &self.state.current {
+            Some((pass, stop)) => {
+                w.u32(1);
+                write_pass(&mut w, pass);
+                write_stop(&mut w, *stop);
+            }
+            None => w.u32(0),
+        }
         w.write(path)
             .with_context(|| format!("cannot write the shard `{}`", path.display()))
     }
@@ -103,6 +266,7 @@ impl ShardFile {
             tiles_done: r.u32("the tiles done")?,
             tiles_total: r.u32("the tiles")?,
         };
+        let settings = read_settings(&mut r)?;
         let mut size = [0u32; 6];
         for v in &mut size {
             *v = r.u32("the film's size")?;
@@ -116,6 +280,8 @@ impl ShardFile {
         };
         if u64::from(x) + u64::from(width) > u64::from(full_width)
             || u64::from(y) + u64::from(height) > u64::from(full_height)
+            || width == 0
+            || height == 0
         {
             return Err(r.problem(format!(
                 "a {width}×{height} window at ({x}, {y}) outside its {full_width}×{full_height} film"
@@ -125,18 +291,44 @@ impl ShardFile {
         let pixels = width as usize * height as usize;
         let samples = r.u32s("the sample counts")?;
         let color = r.f64s("the colour sums")?;
+        let weight = r.f64s("the weights")?;
+        let halves = r.f64s("the half-images")?;
         let sums = r.f64s("the integrator's sums")?;
         if samples.len() != pixels
             || color.len() != 3 * pixels
+            || weight.len() != pixels
+            || (!halves.is_empty() && halves.len() != 2 * pixels)
             || Some(sums.len()) != pixels.checked_mul(stride)
         {
             return Err(r.problem(format!(
-                "{} counts, {} colour sums and {} integrator sums for {pixels} pixels with {stride} sums each",
+                "{} counts, {} colour sums, {} weights, {} half-image sums and {} integrator sums for {pixels} pixels with {stride} sums each",
                 samples.len(),
                 color.len(),
+                weight.len(),
+                halves.len(),
                 sums.len()
             )));
         }
+        let mass = r.f64("the weight mass")?;
+        let elapsed = r.f64("the time")?;
+        let stopped = read_stop(&mut r)?;
+        let passes = r.u64("the pass count")?;
+        let mut records = Vec::new();
+        for _ in 0..passes {
+            let pass = read_pass(&mut r)?;
+            let seconds = r.f64("a pass's time")?;
+            let error = read_error(&mut r)?;
+            records.push(PassRecord {
+                pass,
+                seconds,
+                error,
+            });
+        }
+        let current = if r.u32("whether a pass was cut short")? == 1 {
+            Some((read_pass(&mut r)?, read_stop(&mut r)?))
+        } else {
+            None
+        };
         r.finish()?;
         Ok(ShardFile {
             scene_name,
@@ -146,17 +338,29 @@ impl ShardFile {
             exposure,
             shard: Shard { index, count },
             stats,
-            sums: FilmSums {
-                full_width,
-                full_height,
-                window,
-                samples,
-                color: color
-                    .chunks_exact(3)
-                    .map(|c| DVec3::new(c[0], c[1], c[2]))
-                    .collect(),
-                sums,
-                stride,
+            settings,
+            state: RenderState {
+                sums: FilmSums {
+                    full_width,
+                    full_height,
+                    window,
+                    samples,
+                    color: color
+                        .chunks_exact(3)
+                        .map(|c| DVec3::new(c[0], c[1], c[2]))
+                        .collect(),
+                    weight,
+                    halves: halves.chunks_exact(2).map(|h| [h[0], h[1]]).collect(),
+                    sums,
+                    stride,
+                },
+                history: History {
+                    mass,
+                    passes: records,
+                    elapsed,
+                    stopped,
+                },
+                current,
             },
         })
     }
@@ -175,10 +379,47 @@ pub fn default_path(exr: &Path, shard: Shard) -> PathBuf {
     exr.with_extension(format!("shard-{}-of-{}.lshard", shard.index, shard.count))
 }
 
-/// Merges the shards at `paths` (all the shards of one render, in any order) and writes the
-/// render's EXR and previews to `output` (default: the scene's output); returns the files
-/// written.
-pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
+/// The file a render's state is saved to (after an interrupt, or merged from shards between
+/// passes): beside its EXR, `NAME.lshard`.
+pub fn state_path(exr: &Path) -> PathBuf {
+    exr.with_extension("lshard")
+}
+
+/// What [`merge`] did.
+#[derive(Debug)]
+pub struct Merged {
+    /// The EXR and previews written.
+    pub files: Vec<PathBuf>,
+    /// The passes so far (complete when the pass planned as the last is done).
+    pub history: History,
+    /// Where the merged state was saved, when the render has more passes: the shards of the
+    /// next pass resume from it.
+    pub state: Option<PathBuf>,
+}
+
+/// A short description of a file's passes, for messages.
+fn passes_text(history: &History, current: &Option<(PlannedPass, Option<Stop>)>) -> String {
+    let ends: Vec<String> = history
+        .passes
+        .iter()
+        .map(|p| p.pass.end.to_string())
+        .collect();
+    format!(
+        "passes ending at [{}] samples{}",
+        ends.join(", "),
+        if current.is_some() {
+            " and one cut short"
+        } else {
+            ""
+        }
+    )
+}
+
+/// Merges the shards at `paths` (all the shards of one render, after the same pass, in any
+/// order) and writes the render's EXR and previews to `output` (default: the scene's output);
+/// when the render has more passes, also its merged state, to `state` (default:
+/// [`state_path`] of the EXR), from which the shards of the next pass resume.
+pub fn merge(paths: &[PathBuf], output: Option<&Path>, state: Option<&Path>) -> Result<Merged> {
     let Some(first_path) = paths.first() else {
         bail!("nothing to merge: name the shard files");
     };
@@ -195,10 +436,16 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
             shard.scene_hash,
             &shard.overrides,
             shard.shard.count,
-        ) != (&first.scene_path, first.scene_hash, &first.overrides, count)
-        {
+            &shard.settings,
+        ) != (
+            &first.scene_path,
+            first.scene_hash,
+            &first.overrides,
+            count,
+            &first.settings,
+        ) {
             bail!(
-                "`{}` is shard {} of a render of `{}` with overrides [{}]; `{}` is shard {} of `{}` with [{}]: not the same render (or the scene file changed between them)",
+                "`{}` is shard {} of a render of `{}` with overrides [{}]; `{}` is shard {} of `{}` with [{}]: not the same render (or the scene file or the render's settings changed between them)",
                 path.display(),
                 shard.shard,
                 shard.scene_path.display(),
@@ -207,6 +454,18 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
                 first.shard,
                 first.scene_path.display(),
                 first.overrides.join(" ")
+            );
+        }
+        let plan = |f: &ShardFile| -> Vec<PlannedPass> {
+            f.state.history.passes.iter().map(|p| p.pass).collect()
+        };
+        if plan(shard) != plan(first) || shard.state.current.is_some() {
+            bail!(
+                "`{}` has {}; `{}` has {}: shards merge after the same pass",
+                path.display(),
+                passes_text(&shard.state.history, &shard.state.current),
+                first_path.display(),
+                passes_text(&first.state.history, &first.state.current)
             );
         }
         let slot = &mut seen[shard.shard.index as usize];
@@ -240,15 +499,32 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
             first.scene_path.display()
         );
     }
-    let mut sums = first.sums.clone();
+    let mut merged = first.state.clone();
     for (shard, path) in shards.iter().zip(paths).skip(1) {
-        sums.add(&shard.sums)
+        merged
+            .sums
+            .add(&shard.state.sums)
             .map_err(|e| anyhow::anyhow!("`{}`: {e}", path.display()))?;
     }
+    let settings = &first.settings;
+    if settings.estimates_error()
+        && let Some(last) = merged.history.passes.last_mut()
+    {
+        last.error = lumis_core::error_estimate::estimate(
+            &merged.sums,
+            settings.metric,
+            settings.confidence,
+        );
+    }
+    merged.history.elapsed = shards
+        .iter()
+        .map(|s| s.state.history.elapsed)
+        .fold(0.0, f64::max);
     let loaded = lumis_core::scene::load::load_scene(&first.scene_path, &first.overrides)
         .with_context(|| "the shards' scene, to resolve their sums")?;
     let scene = &loaded.scene;
     let integrator = loaded.integrator.as_ref();
+    let sums = &merged.sums;
     if (
         scene.width,
         scene.height,
@@ -274,13 +550,41 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>) -> Result<Vec<PathBuf>> {
         tiles_total: shards.iter().map(|s| s.stats.tiles_total).sum(),
     };
     let exr = output.map_or_else(|| scene.output.clone(), Path::to_path_buf);
-    let metadata = lumis_core::render_files::metadata(
-        &first.scene_name,
-        &loaded.description.integrator,
-        scene.spp,
-        scene.seed,
-        &stats,
-    );
+    let metadata = if *settings == Settings::samples(scene.spp) {
+        lumis_core::render_files::metadata(
+            &first.scene_name,
+            &loaded.description.integrator,
+            scene.spp,
+            scene.seed,
+            &stats,
+        )
+    } else {
+        lumis_core::render_files::passes_metadata(
+            &first.scene_name,
+            &loaded.description.integrator,
+            scene.seed,
+            &stats,
+            settings,
+            &merged.history,
+        )
+    };
     let written = lumis_core::render_files::write(&film, &exr, first.exposure, &metadata)?;
-    Ok(written.all().into_iter().map(Path::to_path_buf).collect())
+    let state = if merged.history.complete() {
+        None
+    } else {
+        let path = state.map_or_else(|| state_path(&exr), Path::to_path_buf);
+        ShardFile {
+            shard: Shard::WHOLE,
+            stats,
+            state: merged.clone(),
+            ..first.clone()
+        }
+        .write(&path)?;
+        Some(path)
+    };
+    Ok(Merged {
+        files: written.all().into_iter().map(Path::to_path_buf).collect(),
+        history: merged.history,
+        state,
+    })
 }

@@ -100,6 +100,77 @@ fn merged_shards_are_the_one_process_render_bit_for_bit() {
     }
 }
 
+/// A render to a target error in shards: every shard renders a pass, the shards merge, and the
+/// next pass's shards resume from the merged state, until the pass planned as the last. The
+/// passes are decided from the merged image alone, so 2 and 3 shards give the one-process
+/// render's passes and image, bit for bit (the metadata but the render's time too).
+#[test]
+fn the_passes_of_a_render_to_a_target_merge_pass_by_pass() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    let scene = repo().join("scenes/veach.ron");
+    let scene = scene.to_str().expect("UTF-8 path");
+    let settings = [
+        "--set",
+        "film.width=40",
+        "--set",
+        "film.height=36",
+        "--set",
+        "integrator.samples=4",
+        "--target-error",
+        "0.05",
+        "--quiet",
+    ];
+    let run = |extra: &[&str]| {
+        let mut args = vec!["render", scene];
+        args.extend(settings);
+        args.extend(extra);
+        lumis(d, &args)
+    };
+    ok(&run(&["-o", "whole.exr"]), "the whole render");
+    let metadata = |f: &str| -> Vec<(String, String)> {
+        lumis::image_io::read_exr_metadata(&d.join(f))
+            .expect("metadata")
+            .into_iter()
+            .filter(|(k, _)| k != "render_time")
+            .collect()
+    };
+    let whole = lumis::image_io::read_exr_channels(&d.join("whole.exr")).expect("the EXR");
+    for n in [2u32, 3] {
+        let state = format!("state-{n}.lshard");
+        let out = format!("merged-{n}.exr");
+        for round in 0.. {
+            assert!(round < 20, "{n} shards: no end of the passes");
+            let mut parts = Vec::new();
+            for i in 0..n {
+                let part = format!("part-{i}-of-{n}.lshard");
+                let shard = format!("{i}/{n}");
+                let mut extra = vec!["--shard", shard.as_str(), "-o", part.as_str()];
+                if round > 0 {
+                    extra.extend(["--resume", state.as_str()]);
+                }
+                ok(&run(&extra), "a shard's pass");
+                parts.push(part);
+            }
+            let mut args = vec!["merge", "--quiet", "-o", &out, "--state", &state];
+            args.extend(parts.iter().map(String::as_str));
+            ok(&lumis(d, &args), "the merge");
+            let partial = metadata(&out)
+                .iter()
+                .any(|(k, v)| k == "partial" && v == "true");
+            if !partial {
+                break;
+            }
+        }
+        let merged = lumis::image_io::read_exr_channels(&d.join(&out)).expect("the EXR");
+        assert!(
+            merged == whole,
+            "{n} shards' image differs from one process's"
+        );
+        assert_eq!(metadata(&out), metadata("whole.exr"), "{n} shards");
+    }
+}
+
 #[test]
 fn a_merge_names_missing_duplicate_foreign_and_damaged_shards() {
     let dir = tempfile::tempdir().expect("a temporary directory");

@@ -18,6 +18,7 @@ mod import_materials;
 mod integrators;
 mod module_layers;
 mod one_point;
+mod passes;
 mod path;
 mod render;
 mod robustness;

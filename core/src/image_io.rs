@@ -239,7 +239,7 @@ pub fn write_rgb8_png(
 
 /// Encodes 8-bit RGB pixels (row-major) as a PNG: adaptive filters and fast compression (a
 /// preview is written at every render; its size matters less).
-fn encode_png(
+pub fn encode_png(
     file: &mut std::fs::File,
     width: u32,
     height: u32,

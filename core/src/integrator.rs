@@ -181,6 +181,12 @@ pub trait Integrator: Send + Sync {
     /// Work done once per scene before the pixels (e.g. estimating α in a separate pass).
     fn preprocess(&mut self, _scene: &Scene) {}
 
+    /// Called before each pass of a render in passes ([`crate::progressive`]; not before the
+    /// one pass of a plain render), with what the pass gives each pixel and the sums of the
+    /// passes before it: where an allocation that learns from earlier passes reads them. What
+    /// it decides for the pass must depend on these only (docs/integrators.md, "Passes").
+    fn begin_pass(&mut self, _scene: &Scene, _pass: &crate::passes::PassContext<'_>) {}
+
     /// Shades one camera sample: returns its radiance estimate and *adds* its statistics to
     /// `sums`, the pixel's `pixel_sums` sums so far (all zero before its first sample). It must
     /// only add: core may shade a pixel's samples in parts and add the parts' sums.

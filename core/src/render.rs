@@ -1,29 +1,31 @@
-//! The render loop: square tiles rendered in parallel with rayon, assembled into a [`Film`].
+//! The render loop: square tiles rendered in parallel with rayon, pass by pass.
 //!
-//! Core owns the camera samples: per pixel it runs the loop over the scene's `spp` camera
-//! samples ([`CameraSample::new`] draws each one's stream and ray; their primary rays are traced
-//! sixteen at a time, [`CameraSample::trace_together`]), sums the colours the
-//! integrator returns (f64) and lets the integrator add its statistics to the pixel's sums. A
-//! tile's sums and sample counts are its primary data ([`TileSums`]); only then are they
-//! resolved into colours and AOV values. Sums over disjoint sets of camera samples add up, so
-//! tiles rendered apart merge exactly before resolving: [`render_shard`] renders a [`Shard`]'s
-//! tiles to [`FilmSums`], which add up and resolve, with the code that resolves a tile, to the
-//! one-process film bit for bit (docs/distributed.md).
+//! Core owns the camera samples: a pass gives each pixel camera samples from its count so far up
+//! to the pass's end ([`CameraSample::new`] draws each one's stream and ray; their primary rays
+//! are traced sixteen at a time, [`CameraSample::trace_together`]), adds each colour the
+//! integrator returns times the pass's weight to the pixel's sums (f64), and lets the integrator
+//! add its statistics. The sums ([`FilmSums`]) are the primary data; only then are they resolved
+//! into colours and AOV values. Sums over disjoint sets of camera samples add up, so tiles
+//! rendered apart merge exactly before resolving: [`render_shard`] renders a [`Shard`]'s tiles
+//! to sums, which add up and resolve, with the code that resolves a tile, to the one-process film
+//! bit for bit (docs/distributed.md). A plain render ([`render`]) is one pass whose tiles are
+//! resolved as soon as they are rendered; a render in several passes ([`crate::progressive`])
+//! keeps the film's sums between passes ([`render_pass`]).
 
 use crate::film::Film;
+pub use crate::film_sums::FilmSums;
+use crate::film_sums::{TileSumsMut, pixel_color, tiles};
 use crate::geometry::{PACKET_SIZE, take_ray_count};
 use crate::integrator::{CameraSample, Integrator};
 use crate::math::Rgb;
-use crate::output::Window;
+use crate::passes::{Budget, PlannedPass, give, sample_weight};
 use crate::scene::Scene;
 use glam::{DVec3, UVec2};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// Tile edge in pixels: small enough to balance two cores on small images, large enough that
-/// scheduling costs nothing.
-pub const TILE_SIZE: u32 = 16;
+pub use crate::film_sums::TILE_SIZE;
 
 /// What a render did, for the summary line.
 #[derive(Clone, Copy, Debug)]
@@ -92,117 +94,6 @@ impl std::fmt::Display for Shard {
     }
 }
 
-/// What a render's camera samples add up to, per pixel of the window in row order: the
-/// mergeable data of a render (pixels of tiles not rendered have no samples and zero sums).
-#[derive(Clone, Debug, PartialEq)]
-pub struct FilmSums {
-    pub full_width: u32,
-    pub full_height: u32,
-    pub window: Window,
-    /// Camera samples summed in each pixel.
-    pub samples: Vec<u32>,
-    /// Σ of the camera samples' colours.
-    pub color: Vec<DVec3>,
-    /// The integrator's sums, `stride` per pixel.
-    pub sums: Vec<f64>,
-    pub stride: usize,
-}
-
-impl FilmSums {
-    /// Sums of no samples for `scene`'s window, `stride` integrator sums per pixel.
-    pub fn new(scene: &Scene, stride: usize) -> Self {
-        let n = scene.window.width as usize * scene.window.height as usize;
-        FilmSums {
-            full_width: scene.width,
-            full_height: scene.height,
-            window: scene.window,
-            samples: vec![0; n],
-            color: vec![DVec3::ZERO; n],
-            sums: vec![0.0; n * stride],
-            stride,
-        }
-    }
-
-    /// Adds `other`'s samples (a render of the same window by the same integrator): a pixel
-    /// only one of them has is copied, bit for bit.
-    pub fn add(&mut self, other: &FilmSums) -> Result<(), String> {
-        if (self.full_width, self.full_height, self.window, self.stride)
-            != (
-                other.full_width,
-                other.full_height,
-                other.window,
-                other.stride,
-            )
-        {
-            return Err(format!(
-                "sums of a {}×{} window at ({}, {}) of a {}×{} film with {} sums per pixel cannot be added to those of a {}×{} window at ({}, {}) of a {}×{} film with {}",
-                other.window.width,
-                other.window.height,
-                other.window.x,
-                other.window.y,
-                other.full_width,
-                other.full_height,
-                other.stride,
-                self.window.width,
-                self.window.height,
-                self.window.x,
-                self.window.y,
-                self.full_width,
-                self.full_height,
-                self.stride
-            ));
-        }
-        let stride = self.stride;
-        for p in 0..self.samples.len() {
-            let n = other.samples[p];
-            if n == 0 {
-                continue;
-            }
-            let theirs = &other.sums[p * stride..(p + 1) * stride];
-            let ours = &mut self.sums[p * stride..(p + 1) * stride];
-            if self.samples[p] == 0 {
-                self.color[p] = other.color[p];
-                ours.copy_from_slice(theirs);
-            } else {
-                self.color[p] += other.color[p];
-                ours.iter_mut().zip(theirs).for_each(|(a, b)| *a += b);
-            }
-            self.samples[p] += n;
-        }
-        Ok(())
-    }
-
-    /// The film these sums resolve to with `integrator` (the one that rendered them, on the
-    /// same scene): as the one-process render resolves its tiles, pixel by pixel; pixels
-    /// without samples stay black.
-    pub fn resolve(&self, scene: &Scene, integrator: &dyn Integrator) -> Film {
-        let mut film = Film::new(
-            self.full_width,
-            self.full_height,
-            self.window,
-            integrator.aovs(scene),
-        );
-        let channels = film.aov_channels();
-        for (p, &samples) in self.samples.iter().enumerate() {
-            resolve_pixel(
-                scene,
-                integrator,
-                samples,
-                self.color[p],
-                &self.sums[p * self.stride..(p + 1) * self.stride],
-                &mut film.color[p],
-                &mut film.aov_data[p * channels..(p + 1) * channels],
-            );
-        }
-        film
-    }
-
-    /// Pixels with samples.
-    pub fn pixels_with_samples(&self) -> u64 {
-        self.samples.iter().filter(|&&n| n > 0).count() as u64
-    }
-}
-
 /// Renders the scene's window with `threads` worker threads (0: one per core). `on_tile` is
 /// called after each tile with the number of pixels finished (e.g. to advance a progress bar).
 pub fn render(
@@ -219,6 +110,9 @@ pub fn render(
 /// together), so a render stops within one packet per thread. A pixel is *finished*
 /// when all its `spp` camera samples are done; the film holds every finished pixel, the pixels
 /// that were not finished stay black (colour and AOVs zero), and the statistics count both.
+///
+/// This is one pass of `spp` samples, each tile resolved as soon as it is rendered: no sums are
+/// kept for later passes.
 pub fn render_cancellable(
     scene: &Scene,
     integrator: &dyn Integrator,
@@ -226,20 +120,32 @@ pub fn render_cancellable(
     on_tile: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
 ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
+    let pool = thread_pool(threads)?;
     let window = scene.window;
     let mut film = Film::new(scene.width, scene.height, window, integrator.aovs(scene));
     let channels = film.aov_channels();
-    let (tiles, stats) = render_tiles(
-        scene,
-        integrator,
-        threads,
-        Shard::WHOLE,
-        on_tile,
-        cancel,
-        |sums| sums.resolve(scene, integrator, channels),
-    )?;
-    for tile in tiles {
-        let (origin, size) = (tile.origin, tile.size);
+    let stride = integrator.pixel_sums(scene);
+    let pass = one_pass(scene);
+    let start = Instant::now();
+    let tiles: Vec<ResolvedTile> = pool.install(|| {
+        tiles(window)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .filter(|_| !cancel.load(Ordering::Relaxed))
+            .map(|tile| {
+                let mut sums = OwnedTileSums::new(tile.pixels(), stride);
+                let mut part = sums.borrow(tile);
+                let done = render_tile(scene, integrator, &mut part, &pass, cancel);
+                let resolved = ResolvedTile::new(scene, integrator, &part, channels);
+                on_tile(u64::from(done.finished));
+                resolved
+            })
+            .collect()
+    });
+    let wall_time = start.elapsed();
+    let rays: u64 = pool.broadcast(|_| take_ray_count()).into_iter().sum();
+    for tile in &tiles {
+        let (origin, size) = (tile.tile.origin, tile.tile.size);
         for y in 0..size.y {
             let src = (y * size.x) as usize;
             let dst = ((origin.y + y) * window.width + origin.x) as usize;
@@ -249,11 +155,26 @@ pub fn render_cancellable(
                 .copy_from_slice(&tile.aovs[src * channels..(src + w) * channels]);
         }
     }
+    let pixels_done: u64 = tiles.iter().map(|t| u64::from(t.finished)).sum();
+    let stats = RenderStats {
+        wall_time,
+        camera_samples: pixels_done * u64::from(scene.spp),
+        rays,
+        threads: pool.current_num_threads(),
+        pixels_done,
+        pixels_total: window.width as u64 * window.height as u64,
+        tiles_done: tiles
+            .iter()
+            .filter(|t| t.finished as usize == t.tile.pixels())
+            .count() as u32,
+        tiles_total: tiles_count(scene, Shard::WHOLE),
+    };
     Ok((film, stats))
 }
 
-/// Renders the tiles of `shard` and returns their sums, unresolved, for [`FilmSums::add`] and
-/// [`FilmSums::resolve`]. The statistics count the shard's tiles and pixels only.
+/// Renders the tiles of `shard` in one pass of `spp` samples and returns their sums,
+/// unresolved, for [`FilmSums::add`] and [`FilmSums::resolve`]. The statistics count the shard's
+/// tiles and pixels only.
 pub fn render_shard(
     scene: &Scene,
     integrator: &dyn Integrator,
@@ -262,221 +183,226 @@ pub fn render_shard(
     on_tile: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
 ) -> Result<(FilmSums, RenderStats), rayon::ThreadPoolBuildError> {
-    let stride = integrator.pixel_sums(scene);
-    let mut film = FilmSums::new(scene, stride);
-    let (tiles, stats) = render_tiles(scene, integrator, threads, shard, on_tile, cancel, |t| t)?;
-    let width = scene.window.width;
-    for tile in tiles {
-        let (origin, size) = (tile.origin, tile.size);
-        for y in 0..size.y {
-            let src = (y * size.x) as usize;
-            let dst = ((origin.y + y) * width + origin.x) as usize;
-            let w = size.x as usize;
-            film.samples[dst..dst + w].copy_from_slice(&tile.samples[src..src + w]);
-            film.color[dst..dst + w].copy_from_slice(&tile.color[src..src + w]);
-            film.sums[dst * stride..(dst + w) * stride]
-                .copy_from_slice(&tile.sums[src * stride..(src + w) * stride]);
-        }
-    }
-    Ok((film, stats))
+    let pool = thread_pool(threads)?;
+    let mut sums = FilmSums::new(scene, integrator.pixel_sums(scene), false);
+    let pass = one_pass(scene);
+    let stats = render_pass(
+        scene, integrator, &pool, shard, &mut sums, &pass, on_tile, cancel,
+    );
+    Ok((sums, stats))
 }
 
-/// Tiles of a window: how many across, how many down.
-fn tile_grid(window: Window) -> (u32, u32) {
-    (
-        window.width.div_ceil(TILE_SIZE),
-        window.height.div_ceil(TILE_SIZE),
+/// The one pass of a plain render: `spp` samples, planned as the last (every weight one).
+fn one_pass(scene: &Scene) -> Budget {
+    Budget::uniform(
+        f64::from(scene.spp),
+        PlannedPass {
+            end: scene.spp,
+            planned: u64::from(scene.spp),
+        },
     )
 }
 
-/// Renders the tiles of `shard` in parallel, each turned into a `T` by `finish` on its
-/// worker thread, and the statistics of the shard.
-fn render_tiles<T: Send + Finished>(
+/// A pool of `threads` worker threads (0: one per core).
+pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build()
+}
+
+/// Tiles of the window in `shard`.
+fn tiles_count(scene: &Scene, shard: Shard) -> u32 {
+    tiles(scene.window).filter(|t| shard.has(t.index)).count() as u32
+}
+
+/// Adds one pass to the sums of the tiles of `shard`, on `pool`: each pixel renders its camera
+/// samples from its count so far up to the end `budget` gives it, each weighted by
+/// [`sample_weight`]; a pixel already at its end (a pass resumed after an interrupt) renders
+/// nothing. Stops as [`render_cancellable`]
+/// does: a pixel cut short keeps its sums from before the pass. The statistics count the
+/// camera samples of this pass and the pixels and tiles of the shard that have their pass.
+#[allow(clippy::too_many_arguments)]
+pub fn render_pass(
     scene: &Scene,
     integrator: &dyn Integrator,
-    threads: usize,
+    pool: &rayon::ThreadPool,
     shard: Shard,
+    sums: &mut FilmSums,
+    budget: &Budget,
     on_tile: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
-    finish: impl Fn(TileSums) -> T + Sync,
-) -> Result<(Vec<T>, RenderStats), rayon::ThreadPoolBuildError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()?;
-    let window = scene.window;
-    let sums_per_pixel = integrator.pixel_sums(scene);
-    let (tiles_x, tiles_y) = tile_grid(window);
+) -> RenderStats {
     let start = Instant::now();
-
-    let tiles: Vec<T> = pool.install(|| {
-        (0..tiles_x * tiles_y)
+    let done: Vec<TileDone> = pool.install(|| {
+        sums.tiles_mut()
             .into_par_iter()
-            .filter(|&t| shard.has(t) && !cancel.load(Ordering::Relaxed))
-            .map(|t| {
-                let origin = UVec2::new((t % tiles_x) * TILE_SIZE, (t / tiles_x) * TILE_SIZE);
-                let size = UVec2::new(
-                    TILE_SIZE.min(window.width - origin.x),
-                    TILE_SIZE.min(window.height - origin.y),
-                );
-                let sums =
-                    TileSums::render(scene, integrator, origin, size, sums_per_pixel, cancel);
-                let tile = finish(sums);
-                on_tile(tile.finished() as u64);
-                tile
+            .filter(|part| shard.has(part.tile.index))
+            .map(|mut part| {
+                let done = if cancel.load(Ordering::Relaxed) {
+                    TileDone::default()
+                } else {
+                    render_tile(scene, integrator, &mut part, budget, cancel)
+                };
+                on_tile(u64::from(done.finished));
+                TileDone {
+                    complete: done.finished as usize == part.tile.pixels(),
+                    ..done
+                }
             })
             .collect()
     });
     let wall_time = start.elapsed();
     let rays: u64 = pool.broadcast(|_| take_ray_count()).into_iter().sum();
-    let pixels_done: u64 = tiles.iter().map(|t| t.finished() as u64).sum();
-    let tiles_done = tiles.iter().filter(|t| t.finished() == t.pixels()).count() as u32;
-    let (mut pixels_total, mut tiles_total) = (0u64, 0u32);
-    for t in (0..tiles_x * tiles_y).filter(|&t| shard.has(t)) {
-        let (x, y) = ((t % tiles_x) * TILE_SIZE, (t / tiles_x) * TILE_SIZE);
-        pixels_total +=
-            u64::from(TILE_SIZE.min(window.width - x) * TILE_SIZE.min(window.height - y));
-        tiles_total += 1;
-    }
-    let stats = RenderStats {
+    let pixels_total = tiles(scene.window)
+        .filter(|t| shard.has(t.index))
+        .map(|t| t.pixels() as u64)
+        .sum();
+    RenderStats {
         wall_time,
-        camera_samples: pixels_done * scene.spp as u64,
+        camera_samples: done.iter().map(|d| d.samples).sum(),
         rays,
         threads: pool.current_num_threads(),
-        pixels_done,
+        pixels_done: done.iter().map(|d| u64::from(d.finished)).sum(),
         pixels_total,
-        tiles_done,
-        tiles_total,
-    };
-    Ok((tiles, stats))
-}
-
-/// A rendered tile's count of finished pixels, of all its pixels.
-trait Finished {
-    fn finished(&self) -> u32;
-    fn pixels(&self) -> u32;
-}
-
-impl Finished for ResolvedTile {
-    fn finished(&self) -> u32 {
-        self.finished
-    }
-    fn pixels(&self) -> u32 {
-        self.size.x * self.size.y
+        tiles_done: done.iter().filter(|d| d.complete).count() as u32,
+        tiles_total: tiles_count(scene, shard),
     }
 }
 
-impl Finished for TileSums {
-    fn finished(&self) -> u32 {
-        self.samples.iter().filter(|&&n| n > 0).count() as u32
-    }
-    fn pixels(&self) -> u32 {
-        self.size.x * self.size.y
-    }
+/// What a tile's pass did.
+#[derive(Clone, Copy, Debug, Default)]
+struct TileDone {
+    /// Pixels that have their pass (rendered now or before).
+    finished: u32,
+    /// Camera samples rendered now.
+    samples: u64,
+    /// Whether every pixel has its pass.
+    complete: bool,
 }
 
-/// A pixel's colour (the mean of its samples) and AOV values from its sums; nothing for a
-/// pixel without samples (left black). The one place sums become a pixel, so that a render
-/// resolved tile by tile and sums merged from shards give the same bits.
-fn resolve_pixel(
+/// Renders a tile's pass: per pixel, in row order, camera samples from its count up to its end,
+/// until `cancel`; a pixel whose samples were cut short gets its sums from before the pass back,
+/// so that every pixel kept has all the samples of each pass it has.
+fn render_tile(
     scene: &Scene,
     integrator: &dyn Integrator,
-    samples: u32,
-    color_sum: DVec3,
-    sums: &[f64],
-    color: &mut Rgb,
-    aovs: &mut [f32],
-) -> bool {
-    if samples == 0 {
-        return false;
+    part: &mut TileSumsMut<'_>,
+    budget: &Budget,
+    cancel: &AtomicBool,
+) -> TileDone {
+    let tile = part.tile;
+    let window = scene.window;
+    let stride = part.sums.len() / tile.pixels();
+    let keep_halves = !part.halves.is_empty();
+    let mut done = TileDone::default();
+    // The camera samples of a pixel, made, traced and shaded PACKET_SIZE at a time.
+    let mut batch = Vec::with_capacity(PACKET_SIZE);
+    let mut radiance = [Rgb::ZERO; PACKET_SIZE];
+    let mut before = vec![0.0; stride];
+    'pixels: for y in 0..tile.size.y {
+        for x in 0..tile.size.x {
+            let i = (y * tile.size.x + x) as usize;
+            let plan = budget.pixel(tile.first + i);
+            let start = part.samples[i];
+            if start >= plan.end {
+                done.finished += 1;
+                continue;
+            }
+            let pixel = UVec2::new(window.x + tile.origin.x + x, window.y + tile.origin.y + y);
+            let u = sample_weight(budget.mass, part.weight[i], plan.planned);
+            let sums = &mut part.sums[i * stride..(i + 1) * stride];
+            let (color, halves) = (part.color[i], part.halves.get(i).copied());
+            before.copy_from_slice(sums);
+            for first in (start..plan.end).step_by(PACKET_SIZE) {
+                if cancel.load(Ordering::Relaxed) {
+                    sums.copy_from_slice(&before);
+                    part.color[i] = color;
+                    if let Some(h) = halves {
+                        part.halves[i] = h;
+                    }
+                    part.samples[i] = start;
+                    break 'pixels;
+                }
+                let last = (first + PACKET_SIZE as u32).min(plan.end);
+                batch.clear();
+                CameraSample::extend_pixel(scene, pixel, first..last, &mut batch);
+                CameraSample::trace_together(scene, &mut batch);
+                let radiance = &mut radiance[..batch.len()];
+                integrator.shade_together(scene, &mut batch, sums, radiance);
+                for ((index, r), sample) in (first..).zip(radiance.iter()).zip(&batch) {
+                    // The reconstruction filter's weight f/p of the sample's film position.
+                    let r = *r * sample.weight;
+                    part.color[i] += r.as_dvec3() * u;
+                    if keep_halves {
+                        part.halves[i][(index & 1) as usize] += u * luminance(r);
+                    }
+                }
+                part.samples[i] += batch.len() as u32;
+            }
+            part.weight[i] = give(part.weight[i], u, plan.end - start);
+            done.finished += 1;
+            done.samples += u64::from(plan.end - start);
+        }
     }
-    *color = (color_sum / samples as f64).as_vec3();
-    integrator.resolve(scene, sums, samples, aovs);
-    true
+    done
 }
 
-/// What a tile's camera samples add up to, per pixel in row order: the mergeable data.
-struct TileSums {
-    /// Position in the window and size of the tile.
-    origin: UVec2,
-    size: UVec2,
-    /// Camera samples summed in each pixel.
+/// The luminance of a colour, in f64 (the error estimate's quantity).
+#[inline]
+fn luminance(c: Rgb) -> f64 {
+    0.212_671 * c.x as f64 + 0.715_160 * c.y as f64 + 0.072_169 * c.z as f64
+}
+
+/// The sums of one tile, owned: the lean path of a plain render, which resolves each tile
+/// as soon as it is rendered.
+struct OwnedTileSums {
     samples: Vec<u32>,
-    /// Σ of the camera samples' colours.
     color: Vec<DVec3>,
-    /// The integrator's sums, `stride` per pixel.
+    weight: Vec<f64>,
     sums: Vec<f64>,
-    stride: usize,
+}
+
+impl OwnedTileSums {
+    fn new(pixels: usize, stride: usize) -> Self {
+        OwnedTileSums {
+            samples: vec![0; pixels],
+            color: vec![DVec3::ZERO; pixels],
+            weight: vec![0.0; pixels],
+            sums: vec![0.0; pixels * stride],
+        }
+    }
+
+    fn borrow(&mut self, tile: crate::film_sums::Tile) -> TileSumsMut<'_> {
+        TileSumsMut {
+            tile: crate::film_sums::Tile { first: 0, ..tile },
+            samples: &mut self.samples,
+            color: &mut self.color,
+            weight: &mut self.weight,
+            halves: &mut [],
+            sums: &mut self.sums,
+        }
+    }
 }
 
 /// A tile's finished pixels, resolved.
 struct ResolvedTile {
-    origin: UVec2,
-    size: UVec2,
+    tile: crate::film_sums::Tile,
     /// Pixels with all their camera samples; the others are black.
     finished: u32,
     color: Vec<Rgb>,
     aovs: Vec<f32>,
 }
 
-impl TileSums {
-    /// Shades every camera sample of the tile's pixels, in row order, until `cancel`; a pixel
-    /// whose samples were cut short is dropped (its sums and count reset), so that every pixel
-    /// kept has all `spp` samples.
-    fn render(
+impl ResolvedTile {
+    /// Colours (the combination of the samples) and AOV values of the finished pixels.
+    fn new(
         scene: &Scene,
         integrator: &dyn Integrator,
-        origin: UVec2,
-        size: UVec2,
-        stride: usize,
-        cancel: &AtomicBool,
+        part: &TileSumsMut<'_>,
+        channels: usize,
     ) -> Self {
-        let n = (size.x * size.y) as usize;
-        let mut tile = TileSums {
-            origin,
-            size,
-            samples: vec![0; n],
-            color: vec![DVec3::ZERO; n],
-            sums: vec![0.0; n * stride],
-            stride,
-        };
-        let window = scene.window;
-        // The camera samples of a pixel, made, traced and shaded PACKET_SIZE at a time.
-        let mut batch = Vec::with_capacity(PACKET_SIZE);
-        let mut radiance = [Rgb::ZERO; PACKET_SIZE];
-        'pixels: for y in 0..size.y {
-            for x in 0..size.x {
-                let i = (y * size.x + x) as usize;
-                let pixel = UVec2::new(window.x + origin.x + x, window.y + origin.y + y);
-                let sums = &mut tile.sums[i * stride..(i + 1) * stride];
-                for first in (0..scene.spp).step_by(PACKET_SIZE) {
-                    if cancel.load(Ordering::Relaxed) {
-                        sums.fill(0.0);
-                        tile.color[i] = DVec3::ZERO;
-                        tile.samples[i] = 0;
-                        break 'pixels;
-                    }
-                    let last = (first + PACKET_SIZE as u32).min(scene.spp);
-                    batch.clear();
-                    CameraSample::extend_pixel(scene, pixel, first..last, &mut batch);
-                    CameraSample::trace_together(scene, &mut batch);
-                    let radiance = &mut radiance[..batch.len()];
-                    integrator.shade_together(scene, &mut batch, sums, radiance);
-                    for (r, sample) in radiance.iter().zip(&batch) {
-                        tile.color[i] += (*r * sample.weight).as_dvec3();
-                        tile.samples[i] += 1;
-                    }
-                }
-            }
-        }
-        tile
-    }
-
-    /// Colours (means of the samples) and AOV values of the finished pixels.
-    fn resolve(&self, scene: &Scene, integrator: &dyn Integrator, channels: usize) -> ResolvedTile {
-        let n = self.samples.len();
+        let n = part.samples.len();
+        let stride = part.sums.len() / n;
         let mut tile = ResolvedTile {
-            origin: self.origin,
-            size: self.size,
+            tile: part.tile,
             finished: 0,
             color: vec![Rgb::ZERO; n],
             aovs: vec![0.0; n * channels],
@@ -485,9 +411,10 @@ impl TileSums {
             let finished = resolve_pixel(
                 scene,
                 integrator,
-                self.samples[i],
-                self.color[i],
-                &self.sums[i * self.stride..(i + 1) * self.stride],
+                part.samples[i],
+                part.color[i],
+                part.weight[i],
+                &part.sums[i * stride..(i + 1) * stride],
                 &mut tile.color[i],
                 &mut tile.aovs[i * channels..(i + 1) * channels],
             );
@@ -495,4 +422,56 @@ impl TileSums {
         }
         tile
     }
+}
+
+/// Resolving needs the integrator (its AOVs), which the sums' module does not know of.
+impl FilmSums {
+    /// The film these sums resolve to with `integrator` (the one that rendered them, on the
+    /// same scene): each pixel as the one-process render resolves it; pixels without samples
+    /// stay black.
+    pub fn resolve(&self, scene: &Scene, integrator: &dyn Integrator) -> Film {
+        let mut film = Film::new(
+            self.full_width,
+            self.full_height,
+            self.window,
+            integrator.aovs(scene),
+        );
+        let channels = film.aov_channels();
+        for p in 0..self.samples.len() {
+            let row = self.row_index(p);
+            resolve_pixel(
+                scene,
+                integrator,
+                self.samples[p],
+                self.color[p],
+                self.weight[p],
+                &self.sums[p * self.stride..(p + 1) * self.stride],
+                &mut film.color[row],
+                &mut film.aov_data[row * channels..(row + 1) * channels],
+            );
+        }
+        film
+    }
+}
+
+/// A pixel's colour and AOV values from its sums; nothing for a pixel without samples (left
+/// black). The one place sums become a pixel, so that a render resolved tile by tile and sums
+/// merged from shards give the same bits.
+#[allow(clippy::too_many_arguments)]
+fn resolve_pixel(
+    scene: &Scene,
+    integrator: &dyn Integrator,
+    samples: u32,
+    color_sum: DVec3,
+    weight: f64,
+    sums: &[f64],
+    color: &mut Rgb,
+    aovs: &mut [f32],
+) -> bool {
+    if samples == 0 {
+        return false;
+    }
+    *color = pixel_color(color_sum, weight);
+    integrator.resolve(scene, sums, samples, aovs);
+    true
 }

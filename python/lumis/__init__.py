@@ -16,12 +16,18 @@ Studies of the speed/accuracy trade, as ``lumis study`` runs them, return their 
     study.results[0]["ratio_relative_variance"]    # and its _lo, _hi: the 95 % interval
     study.dataframe("curves")                        # with pandas installed
 
+A render to a target error (or in a time) runs in passes and states its error::
+
+    result = scene.render(target_error=0.01, on_pass=lambda p: print(p))
+    result.error, result.error_interval    # the estimate and its 95 % interval
+
 See ``help(lumis.Scene.render)``, ``help(lumis.study)`` and ``lumis.plugins()``.
 """
 
 from ._lumis import (
     LumisError,
     OutputError,
+    PassReport,
     PluginError,
     RenderError,
     RenderResult,
@@ -36,6 +42,7 @@ from ._study import Study, study
 __all__ = [
     "LumisError",
     "OutputError",
+    "PassReport",
     "PluginError",
     "RenderError",
     "RenderResult",

@@ -1,6 +1,6 @@
 """Type stubs of the lumis extension module (re-exported by the ``lumis`` package)."""
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from os import PathLike
 from typing import Any, Optional, Union
 
@@ -40,6 +40,36 @@ class OutputError(LumisError):
 
     path: str
     """The file that could not be written."""
+
+class PassReport:
+    """What a render in passes reports after each pass: to `Scene.render`'s ``on_pass``, and in
+    `RenderResult.passes`."""
+
+    @property
+    def index(self) -> int:
+        """The pass's index, 0 for the first."""
+    @property
+    def samples(self) -> int:
+        """Camera samples per pixel after the pass."""
+    @property
+    def time(self) -> float:
+        """Seconds since the render's first pass started."""
+    @property
+    def error(self) -> Optional[float]:
+        """The image's estimated error after the pass (None if the render estimates none: a
+        render in passes of odd sizes)."""
+    @property
+    def interval(self) -> Optional[tuple[float, float]]:
+        """(low, high): holds the image's error with probability `confidence`."""
+    @property
+    def metric(self) -> Optional[str]:
+        """The error's metric: ``"relmse"`` or ``"mse"``."""
+    @property
+    def confidence(self) -> Optional[float]:
+        """The interval's confidence."""
+    @property
+    def last(self) -> bool:
+        """Whether the pass was planned as the render's last."""
 
 class RenderResult:
     """A finished render: every layer as a read-only ``numpy.float32`` array of shape
@@ -97,6 +127,26 @@ class RenderResult:
     def seed(self) -> int:
         """The render's seed."""
     @property
+    def passes(self) -> list[PassReport]:
+        """A render in passes: each pass's report, in order (empty for a plain render)."""
+    @property
+    def error(self) -> Optional[float]:
+        """The image's estimated error (a render in passes; else None): see
+        docs/integrators.md, "Passes", for what it estimates."""
+    @property
+    def error_interval(self) -> Optional[tuple[float, float]]:
+        """(low, high): holds the image's error with the render's confidence."""
+    @property
+    def stopped(self) -> Optional[str]:
+        """Why a render in passes ended: ``"target"`` (its last pass was sized to reach the
+        target), ``"max-spp"``, ``"max-time"``, ``"time"``, ``"samples"``; None for a plain
+        render or one stopped by ``on_pass``."""
+    @property
+    def partial(self) -> bool:
+        """Whether the image is partial: a render in passes stopped by ``on_pass`` before the
+        pass planned as its last (its passes then weighted to sum to one: consistent, not
+        unbiased)."""
+    @property
     def integrator(self) -> dict[str, Any]:
         """The integrator that rendered, as in a scene: ``{"type": "alpha", "samples": 64, ...}``."""
     @property
@@ -142,9 +192,23 @@ class Scene:
         spp: Optional[int] = None,
         seed: Optional[int] = None,
         threads: Optional[int] = None,
+        target_error: Optional[float] = None,
+        time: Optional[float] = None,
+        passes: Optional[int] = None,
+        metric: Optional[str] = None,
+        confidence: Optional[float] = None,
+        max_spp: Optional[int] = None,
+        max_time: Optional[float] = None,
+        on_pass: Optional[Callable[[PassReport], Optional[bool]]] = None,
         **params: Any,
     ) -> RenderResult:
         """Renders the scene and returns its layers as numpy arrays.
+
+        A render to a target error, in a time or in passes (``lumis render --target-error``,
+        ``--time``, ``--passes``) runs in passes, the image's error estimated after each::
+
+            result = scene.render(target_error=0.01, on_pass=lambda p: print(p))
+            result.error, result.error_interval, result.samples_per_second
 
         Args:
             integrator: the integrator plugin's name (``"balance"``, ``"alpha"``, ...; see
@@ -154,6 +218,15 @@ class Scene:
             seed: the random seed; default the scene's ``sampler.seed``. A render is a
                 function of the scene, spp and seed alone: the same for any number of threads.
             threads: worker threads; default one per core.
+            target_error: render in passes until the image's error (`metric`) is below this
+                with the `confidence`, or a cap (`max_spp`, default 4096; `max_time`, seconds).
+            time: render in passes the best image this many seconds allow (`max_spp` caps it).
+            passes: render `spp` samples in this many passes (the same image as one pass).
+            metric: ``"relmse"`` (default: the luminance's squared error over Y² + ε, averaged
+                over the pixels) or ``"mse"``.
+            confidence: of the stated error interval and of a target's stop (default 0.95).
+            on_pass: called after each pass with its `PassReport`; returning ``False`` stops the
+                render there (the result is then `partial`), anything else goes on.
             **params: integrator parameters, as in the scene's ``integrator`` (``samples=64``,
                 ``aovs=["alpha", "sampling_variance"]``, ``mode="integrated"``); ``None``
                 removes a parameter the scene sets.
@@ -165,7 +238,8 @@ class Scene:
         Raises:
             PluginError: unknown integrator or parameters it refuses (the CLI's message).
             RenderError: the render threads could not start.
-            ValueError: spp is 0.
+            ValueError: spp is 0, or settings of a render in passes that ``lumis render`` would
+                refuse (a negative target, both a target and a time, ...).
         """
 
 def load(

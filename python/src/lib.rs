@@ -10,9 +10,12 @@ mod convert;
 mod study;
 
 use lumis::embedding::catch_panic;
+use lumis_core::error_estimate::Metric;
 use lumis_core::film::Film;
 use lumis_core::image_io::Metadata;
 use lumis_core::params::ParamSpec;
+use lumis_core::passes::{History, Request, Settings};
+use lumis_core::progressive::{Control, RenderState, Scope};
 use lumis_core::registry::{
     self, BsdfPlugin, EmitterPlugin, IntegratorPlugin, PluginInfo, TexturePlugin,
 };
@@ -69,26 +72,43 @@ fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
     catch_panic(f).unwrap_or_else(|message| Err(LumisError::new_err(message)))
 }
 
+/// What the work thread of [`beside_python`] sends the calling thread.
+enum Event<T> {
+    /// The work's result.
+    Done(Result<T, String>),
+    /// A pass of a render in passes is done: its report, and where to answer whether to go on.
+    Pass(PassReport, mpsc::Sender<bool>),
+}
+
 /// Runs `work` on a thread named `name` while the calling thread waits with the GIL released,
-/// waking every [`SIGNAL_POLL`] to let Python handle signals and to call `tick`. Ctrl-C (any
-/// signal handler that raises) or an exception from `tick` sets the cancel flag `work` is given,
-/// waits for the thread to stop (within a camera sample per render thread) and is returned; a
-/// panic in `work` becomes a `LumisError`.
+/// waking every [`SIGNAL_POLL`] to let Python handle signals and to call `tick`. `work` may hand
+/// a pass's report to the calling thread, which calls `on_pass` with it (the GIL held) and
+/// answers whether to go on; `work` waits for the answer. Ctrl-C (any signal handler that
+/// raises) or an exception from `tick` or `on_pass` sets the cancel flag `work` is given (and
+/// answers a waiting pass "stop"), waits for the thread to stop (within a camera sample per
+/// render thread) and is returned; a panic in `work` becomes a `LumisError`.
 fn beside_python<T: Send + 'static>(
     py: Python<'_>,
     name: &str,
-    work: impl FnOnce(&AtomicBool) -> T + Send + 'static,
+    work: impl FnOnce(&AtomicBool, &dyn Fn(PassReport) -> bool) -> T + Send + 'static,
     mut tick: impl FnMut() -> PyResult<()>,
+    mut on_pass: impl FnMut(PassReport) -> PyResult<bool>,
 ) -> PyResult<T> {
     let cancel = Arc::new(AtomicBool::new(false));
-    let (sender, receiver) = mpsc::channel::<Result<T, String>>();
+    let (sender, receiver) = mpsc::channel::<Event<T>>();
     let thread_cancel = cancel.clone();
     let worker = std::thread::Builder::new()
         .name(name.into())
         .spawn(move || {
-            let outcome = catch_panic(|| work(&thread_cancel));
+            let passes = sender.clone();
+            let report = move |report: PassReport| {
+                let (answer, answered) = mpsc::channel();
+                // No answer (the caller stopped waiting) is a stop.
+                passes.send(Event::Pass(report, answer)).is_ok() && answered.recv() == Ok(true)
+            };
+            let outcome = catch_panic(|| work(&thread_cancel, &report));
             // The receiver is gone only if the caller stopped waiting (interrupted).
-            let _ = sender.send(outcome);
+            let _ = sender.send(Event::Done(outcome));
         })
         .map_err(|e| RenderError::new_err(format!("cannot start the thread `{name}`: {e}")))?;
     // `detach` needs a shareable receiver; only this thread ever locks it.
@@ -101,7 +121,13 @@ fn beside_python<T: Send + 'static>(
                 .recv_timeout(SIGNAL_POLL)
         });
         match received {
-            Ok(outcome) => break Ok(outcome),
+            Ok(Event::Done(outcome)) => break Ok(outcome),
+            Ok(Event::Pass(report, answer)) => match on_pass(report) {
+                Ok(go_on) => {
+                    let _ = answer.send(go_on);
+                }
+                Err(raised) => break Err(raised),
+            },
             Err(mpsc::RecvTimeoutError::Timeout) => {
                 if let Err(raised) = py.check_signals().and_then(|()| tick()) {
                     break Err(raised);
@@ -115,6 +141,8 @@ fn beside_python<T: Send + 'static>(
     if finished.is_err() {
         cancel.store(true, Ordering::Relaxed);
     }
+    // A pass waiting for its answer gets none when the receiver goes: a stop.
+    drop(receiver);
     let _ = py.detach(|| worker.join());
     finished?.map_err(LumisError::new_err)
 }
@@ -234,11 +262,20 @@ impl Scene {
     ///
     /// integrator: plugin name (default the scene's; its parameters are kept, as with
     /// `--set integrator.type=NAME`); spp, seed: default the scene's `sampler` values; threads:
-    /// default one per core; **params: integrator parameters (`samples=64`, `aovs=["alpha"]`;
-    /// None removes one). The GIL is released while rendering; Ctrl-C stops the render and
-    /// raises KeyboardInterrupt (the partial image is discarded). Raises PluginError for an
-    /// unknown integrator or refused parameters, RenderError if the render cannot run.
-    #[pyo3(signature = (integrator=None, spp=None, seed=None, threads=None, **params))]
+    /// default one per core; target_error, time, passes, metric, confidence, max_spp,
+    /// max_time: a render in passes, as `lumis render`'s options of those names; on_pass: called
+    /// after each pass with a PassReport, returns False to stop; **params: integrator
+    /// parameters (`samples=64`, `aovs=["alpha"]`; None removes one). The GIL is released while
+    /// rendering; Ctrl-C stops the render and raises KeyboardInterrupt (the partial image is
+    /// discarded). Raises PluginError for an unknown integrator or refused parameters,
+    /// ValueError for settings a render in passes refuses, RenderError if the render cannot
+    /// run.
+    #[pyo3(signature = (
+        integrator=None, spp=None, seed=None, threads=None, target_error=None, time=None,
+        passes=None, metric=None, confidence=None, max_spp=None, max_time=None, on_pass=None,
+        **params
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn render(
         &self,
         py: Python<'_>,
@@ -246,14 +283,49 @@ impl Scene {
         spp: Option<u32>,
         seed: Option<u64>,
         threads: Option<usize>,
+        target_error: Option<f64>,
+        time: Option<f64>,
+        passes: Option<u32>,
+        metric: Option<String>,
+        confidence: Option<f64>,
+        max_spp: Option<u32>,
+        max_time: Option<f64>,
+        on_pass: Option<Bound<'_, PyAny>>,
         params: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<RenderResult> {
         guarded(|| {
             if spp == Some(0) {
                 return Err(PyValueError::new_err("spp must be at least 1"));
             }
+            if (target_error.is_some() || time.is_some()) && spp.is_some() {
+                return Err(PyValueError::new_err(
+                    "spp fixes the samples; a render to target_error or in a time chooses them (cap them with max_spp)",
+                ));
+            }
             let spp = spp.unwrap_or(self.description.sampler.spp);
             let seed = seed.unwrap_or(self.description.sampler.seed);
+            let request = Request {
+                target_error,
+                time,
+                passes,
+                replay: None,
+                metric: metric
+                    .as_deref()
+                    .map(Metric::parse)
+                    .transpose()
+                    .map_err(PyValueError::new_err)?,
+                confidence,
+                max_spp,
+                max_time,
+            };
+            let settings = request
+                .settings(spp, str::to_string)
+                .map_err(PyValueError::new_err)?;
+            if settings.is_none() && on_pass.is_some() {
+                return Err(PyValueError::new_err(
+                    "on_pass is called after each pass of a render in passes (target_error, time or passes)",
+                ));
+            }
             let mut spec = self.description.integrator.clone();
             if let Some(kind) = integrator {
                 spec.kind = kind;
@@ -274,27 +346,82 @@ impl Scene {
                 .map_err(|e| PluginError::new_err(format!("{}: {e}", self.path.display())))?;
 
             let built = self.built.clone();
-            let (film, stats) = beside_python(
+            let Some(settings) = settings else {
+                let (film, stats) = beside_python(
+                    py,
+                    "lumis-render",
+                    move |cancel, _| {
+                        let mut scene = built.lock().unwrap_or_else(PoisonError::into_inner);
+                        scene.spp = spp;
+                        scene.seed = seed;
+                        integrator.preprocess(&scene);
+                        lumis_core::render::render_cancellable(
+                            &scene,
+                            integrator.as_ref(),
+                            threads.unwrap_or(0),
+                            &|_| {},
+                            cancel,
+                        )
+                        .map_err(|e| format!("cannot start the render threads: {e}"))
+                    },
+                    || Ok(()),
+                    |_| Ok(true),
+                )?
+                .map_err(RenderError::new_err)?;
+                return RenderResult::new(py, self, film, stats, spec, spp, seed, None);
+            };
+            let thread_settings = settings.clone();
+            let (film, stats, history) = beside_python(
                 py,
                 "lumis-render",
-                move |cancel| {
+                move |cancel, report| {
                     let mut scene = built.lock().unwrap_or_else(PoisonError::into_inner);
                     scene.spp = spp;
                     scene.seed = seed;
                     integrator.preprocess(&scene);
-                    lumis_core::render::render_cancellable(
+                    let settings = thread_settings;
+                    let mut state = RenderState::new(&scene, integrator.as_ref(), &settings);
+                    let outcome = lumis_core::progressive::run(
                         &scene,
-                        integrator.as_ref(),
-                        threads.unwrap_or(0),
-                        &|_| {},
+                        integrator.as_mut(),
+                        &settings,
+                        &mut state,
+                        Scope::whole(threads.unwrap_or(0)),
                         cancel,
+                        &|_| {},
+                        &mut |state| {
+                            if report(PassReport::new(&state.history)) {
+                                Control::Continue
+                            } else {
+                                Control::Stop
+                            }
+                        },
                     )
-                    .map_err(|e| format!("cannot start the render threads: {e}"))
+                    .map_err(|e| format!("cannot start the render threads: {e}"))?;
+                    let film = state.sums.resolve(&scene, integrator.as_ref());
+                    Ok::<_, String>((film, outcome.stats, state.history))
                 },
                 || Ok(()),
+                |report| match &on_pass {
+                    // Only False stops (a callback that returns nothing goes on).
+                    Some(callback) => {
+                        let answer = callback.call1((report,))?;
+                        Ok(!answer.is(pyo3::types::PyBool::new(py, false).as_any()))
+                    }
+                    None => Ok(true),
+                },
             )?
             .map_err(RenderError::new_err)?;
-            RenderResult::new(py, self, film, stats, spec, spp, seed)
+            RenderResult::new(
+                py,
+                self,
+                film,
+                stats,
+                spec,
+                history.samples(),
+                seed,
+                Some((settings, history)),
+            )
         })
     }
 
@@ -355,6 +482,108 @@ fn plugin_spec_dict<'py>(py: Python<'py>, spec: &PluginSpec) -> PyResult<Bound<'
     Ok(dict)
 }
 
+/// What a render in passes reports after each pass (to `Scene.render`'s `on_pass`, and in
+/// `RenderResult.passes`).
+#[pyclass(module = "lumis", frozen)]
+#[derive(Clone, Debug)]
+struct PassReport {
+    index: usize,
+    samples: u32,
+    time: f64,
+    error: Option<lumis_core::error_estimate::ErrorEstimate>,
+    last: bool,
+}
+
+impl PassReport {
+    /// The report of the latest pass of `history`.
+    fn new(history: &History) -> Self {
+        Self::of(history, history.passes.len() - 1)
+    }
+
+    /// The report of pass `index` of `history`.
+    fn of(history: &History, index: usize) -> Self {
+        let record = &history.passes[index];
+        let seconds: f64 = history.passes[..=index].iter().map(|p| p.seconds).sum();
+        let last = index + 1 == history.passes.len() && history.complete();
+        PassReport {
+            index,
+            samples: record.pass.end,
+            time: if index + 1 == history.passes.len() {
+                history.elapsed
+            } else {
+                seconds
+            },
+            error: record.error,
+            last,
+        }
+    }
+}
+
+#[pymethods]
+impl PassReport {
+    /// The pass's index, 0 for the first.
+    #[getter]
+    fn index(&self) -> usize {
+        self.index
+    }
+
+    /// Camera samples per pixel after the pass.
+    #[getter]
+    fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Seconds since the render's first pass started.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// The image's estimated error after the pass (None if the render estimates none).
+    #[getter]
+    fn error(&self) -> Option<f64> {
+        self.error.map(|e| e.value)
+    }
+
+    /// The interval (low, high) that holds the image's error with the render's confidence.
+    #[getter]
+    fn interval(&self) -> Option<(f64, f64)> {
+        self.error.map(|e| (e.low, e.high))
+    }
+
+    /// The error's metric, "relmse" or "mse".
+    #[getter]
+    fn metric(&self) -> Option<&'static str> {
+        self.error.map(|e| e.metric.name())
+    }
+
+    /// The interval's confidence.
+    #[getter]
+    fn confidence(&self) -> Option<f64> {
+        self.error.map(|e| e.confidence)
+    }
+
+    /// Whether this pass was planned as the render's last.
+    #[getter]
+    fn last(&self) -> bool {
+        self.last
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<lumis.PassReport {}: {} spp, {:.3} s{}{}>",
+            self.index,
+            self.samples,
+            self.time,
+            self.error.map_or(String::new(), |e| format!(
+                ", error {}",
+                render_files::error_text(&e)
+            )),
+            if self.last { ", the last" } else { "" }
+        )
+    }
+}
+
 /// One output layer: its name, channel names and pixels.
 struct Layer {
     name: String,
@@ -375,6 +604,8 @@ struct RenderResult {
     integrator: PluginSpec,
     spp: u32,
     seed: u64,
+    /// A render in passes: what it was asked and its passes.
+    passes: Option<(Settings, History)>,
 }
 
 /// A read-only (height, width, channels) float32 array from per-pixel interleaved values.
@@ -395,6 +626,7 @@ fn array(
 }
 
 impl RenderResult {
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         scene: &Scene,
@@ -403,6 +635,7 @@ impl RenderResult {
         integrator: PluginSpec,
         spp: u32,
         seed: u64,
+        passes: Option<(Settings, History)>,
     ) -> PyResult<Self> {
         let (width, height) = (film.window.width as usize, film.window.height as usize);
         let mut layers = vec![Layer {
@@ -430,7 +663,17 @@ impl RenderResult {
                 pixels: array(py, height, width, channels.len(), values)?,
             });
         }
-        let metadata = render_files::metadata(&scene.label, &integrator, spp, seed, &stats);
+        let metadata = match &passes {
+            Some((settings, history)) => render_files::passes_metadata(
+                &scene.label,
+                &integrator,
+                seed,
+                &stats,
+                settings,
+                history,
+            ),
+            None => render_files::metadata(&scene.label, &integrator, spp, seed, &stats),
+        };
         Ok(RenderResult {
             exposure: scene.description.film.exposure,
             film,
@@ -441,7 +684,12 @@ impl RenderResult {
             integrator,
             spp,
             seed,
+            passes,
         })
+    }
+
+    fn history(&self) -> Option<&History> {
+        self.passes.as_ref().map(|(_, history)| history)
     }
 
     fn layer_names(&self) -> Vec<&str> {
@@ -554,6 +802,47 @@ impl RenderResult {
         self.seed
     }
 
+    /// A render in passes: each pass's report, in order (empty for a plain render).
+    #[getter]
+    fn passes(&self) -> Vec<PassReport> {
+        self.passes.as_ref().map_or(Vec::new(), |(_, history)| {
+            (0..history.passes.len())
+                .map(|k| PassReport::of(history, k))
+                .collect()
+        })
+    }
+
+    /// The image's estimated error (a render in passes that estimates it; else None).
+    #[getter]
+    fn error(&self) -> Option<f64> {
+        self.history().and_then(History::error).map(|e| e.value)
+    }
+
+    /// The interval (low, high) that holds the image's error with the render's confidence.
+    #[getter]
+    fn error_interval(&self) -> Option<(f64, f64)> {
+        self.history()
+            .and_then(History::error)
+            .map(|e| (e.low, e.high))
+    }
+
+    /// Why a render in passes ended: "target", "max-spp", "max-time", "time", "samples",
+    /// "replay"; None for a plain render or one stopped by `on_pass`.
+    #[getter]
+    fn stopped(&self) -> Option<&'static str> {
+        self.history()
+            .and_then(|h| h.stopped)
+            .map(lumis_core::passes::Stop::name)
+    }
+
+    /// Whether the image is partial: a render in passes stopped by `on_pass` before the pass
+    /// planned as its last (its passes' weights then made to sum to one: consistent, not
+    /// unbiased).
+    #[getter]
+    fn partial(&self) -> bool {
+        self.stats.partial() || self.history().is_some_and(|h| !h.complete())
+    }
+
     /// The integrator that rendered: {"type": name, parameter: value, ...}.
     #[getter]
     fn integrator<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
@@ -661,6 +950,7 @@ fn _lumis(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("OutputError", py.get_type::<OutputError>())?;
     m.add_class::<Scene>()?;
     m.add_class::<RenderResult>()?;
+    m.add_class::<PassReport>()?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(load_dict, m)?)?;
     m.add_function(wrap_pyfunction!(plugins, m)?)?;

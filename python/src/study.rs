@@ -164,8 +164,9 @@ fn run(
     let outcome = beside_python(
         py,
         "lumis-study",
-        move |cancel| lumis::study::run(&config, &progress, cancel),
+        move |cancel, _| lumis::study::run(&config, &progress, cancel),
         &mut report,
+        |_| Ok(true),
     )?;
     match outcome {
         Ok(analyses) => {

@@ -35,7 +35,7 @@ def test_stub_names_match_the_module():
 
 def test_stub_members_match_the_classes():
     _, classes = stub_definitions()
-    for name in ["Scene", "RenderResult"]:
+    for name in ["Scene", "RenderResult", "PassReport"]:
         cls = getattr(module, name)
         runtime = {m for m in dir(cls) if not m.startswith("_") or m in classes[name]}
         stubbed = classes[name]
@@ -45,5 +45,19 @@ def test_stub_members_match_the_classes():
 
 def test_render_signature_has_keyword_parameters():
     parameters = inspect.signature(lumis.Scene.render).parameters
-    assert list(parameters)[1:] == ["integrator", "spp", "seed", "threads", "params"]
+    assert list(parameters)[1:] == [
+        "integrator",
+        "spp",
+        "seed",
+        "threads",
+        "target_error",
+        "time",
+        "passes",
+        "metric",
+        "confidence",
+        "max_spp",
+        "max_time",
+        "on_pass",
+        "params",
+    ]
     assert parameters["params"].kind is inspect.Parameter.VAR_KEYWORD

@@ -196,3 +196,67 @@ fn sigterm_writes_the_partial_image_and_exits_143() {
     assert!(dir.path().join("cut.png").exists());
     assert!(no_temporaries(dir.path()));
 }
+
+/// A render in passes interrupted in its second pass: the first pass is written within 2 s,
+/// marked partial, with the render's state beside it; the same command with `--resume` then
+/// finishes it into the image of a render never interrupted, and removes the state.
+#[test]
+fn ctrl_c_in_a_render_in_passes_saves_a_state_that_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = [
+        "--passes",
+        "2",
+        "--spp",
+        "32",
+        "--threads",
+        "1",
+        "--set",
+        "film.width=64",
+        "--set",
+        "film.height=64",
+        "--set",
+        "integrator.samples=64",
+    ];
+    let (mut child, lines) = start(d, &args);
+    let mut seen = Vec::new();
+    wait_for(&lines, "pass 1:", &mut seen);
+    signal(&child, libc::SIGINT);
+    let (code, took) = wait_exit(&mut child, Duration::from_secs(30));
+    assert!(took < Duration::from_secs(2), "took {took:?}");
+    assert_eq!(code, Some(130), "{seen:#?}");
+    for line in lines.try_iter() {
+        seen.push(line);
+    }
+    let text = metadata(&d.join("cut.exr"));
+    assert!(
+        text.contains("partial=true\n") && text.contains("passes=1\n"),
+        "{text}"
+    );
+    assert!(
+        seen.iter()
+            .any(|l| l.contains("continue it with") && l.contains("--resume")),
+        "{seen:#?}"
+    );
+    assert!(d.join("cut.lshard").exists());
+    assert!(no_temporaries(d));
+
+    let run = |extra: &[&str], out: &str| {
+        let status = Command::new(env!("CARGO_BIN_EXE_lumis"))
+            .current_dir(d)
+            .arg("render")
+            .arg(cornell())
+            .args(["-q", "-o", out])
+            .args(args)
+            .args(extra)
+            .status()
+            .unwrap();
+        assert!(status.success());
+    };
+    run(&["--resume", "cut.lshard"], "cut.exr");
+    assert!(!d.join("cut.lshard").exists());
+    run(&[], "whole.exr");
+    let channels = |f: &str| lumis::image_io::read_exr_channels(&d.join(f)).unwrap();
+    assert_eq!(channels("cut.exr"), channels("whole.exr"));
+    assert!(metadata(&d.join("cut.exr")).contains("partial=false\n"));
+}

@@ -27,6 +27,25 @@ pub fn add_film(estimate: &mut MemoryEstimate, window: &Window, channels: u64) {
     );
 }
 
+/// Bytes per pixel of a render's sums kept between passes: the sample count, Σ u·colour and Σ u
+/// (docs/architecture.md, "Passes").
+const SUMS_BYTES_PER_PIXEL: u64 = 4 + 24 + 8;
+
+/// Adds the sums a render in passes keeps for the whole film of `window` (with `stride`
+/// integrator sums per pixel and, if `halves`, the half-images of the error estimate), and the
+/// colour a preview is resolved to.
+pub fn add_film_sums(estimate: &mut MemoryEstimate, window: &Window, stride: u64, halves: bool) {
+    let pixels = window.width as u64 * window.height as u64;
+    let per_pixel = SUMS_BYTES_PER_PIXEL + 8 * stride + if halves { 16 } else { 0 } + 12;
+    estimate.add(
+        format!(
+            "the sums of {} passes",
+            if halves { "error-estimating" } else { "the" }
+        ),
+        pixels.saturating_mul(per_pixel),
+    );
+}
+
 /// Adds the BVH over `shapes` (the meshes themselves are already in memory) and the copies area
 /// emitters keep of their triangles (`emitting`: triangles of shapes with an area emitter).
 pub fn add_geometry(estimate: &mut MemoryEstimate, shapes: &[ShapeGeometry], emitting: u64) {

@@ -1,0 +1,573 @@
+//! Renders in passes, measured (docs/study.md, "Renders to a target error"):
+//!
+//! ```text
+//! cargo bench --bench passes -- coverage [--renders R] [--size WxH] [--samples N]
+//!     [--target E] [--metric relmse|mse] [--confidence C] [--reference-spp S] SCENE...
+//! cargo bench --bench passes -- bias [--renders R] [--size WxH] [--samples N] [--target E]
+//!     [--spp S] SCENE...
+//! cargo bench --bench passes -- cost [--runs K] [--size WxH] [--samples N] [--spp S]
+//!     [--passes P] SCENE...
+//! ```
+//!
+//! `coverage`: per scene, a converged reference (S samples per pixel in 16 renders of
+//! independent seeds: its per-pixel mean and the variance of that mean), then R renders to the
+//! target error E (seeds 0 … R − 1). For each render the true error e against the reference
+//! (the reference's own variance taken out), the stated estimate and interval; over the renders
+//! the fraction with e < E (*honest stopping*: at least the confidence) and the fraction whose
+//! stated interval holds e (*coverage*: the nominal two-sided confidence), each with its 95 %
+//! Wilson interval, the samples and passes used and why the renders stopped.
+//!
+//! `bias`: per scene, R renders to the target error (planned weights), R renders of the same
+//! target by the biased rule (equal weights, stopped after the first pass whose own estimate is
+//! below the target: `Control::Stop`) and R plain one-pass renders of `--spp` samples, seeds
+//! disjoint. Each render gives one number, its image's mean luminance; the relative difference
+//! of each rule's mean from the plain renders', its standard error (Welch), its z, and the
+//! relative bias the comparison detects with probability 0.9 at the suite's false-alarm rate.
+//!
+//! `cost`: a render of S samples per pixel in P uniform passes (with everything a target render
+//! does between passes: the error estimate, a preview resolved and encoded as PNG) against the
+//! one-pass render of the same samples, K interleaved pairs on one thread; the images are the
+//! same bit for bit. Prints the ratio of the medians of CPU time and the 95 % interval of the
+//! mean of the pairs' log ratios.
+
+use lumis::error_estimate::Metric;
+use lumis::passes::{Settings, Stopping};
+use lumis::progressive::{Control, RenderState, Scope};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+struct Options {
+    mode: String,
+    renders: usize,
+    width: u32,
+    height: u32,
+    samples: u32,
+    target: f64,
+    metric: Metric,
+    confidence: f64,
+    reference_spp: u32,
+    spp: u32,
+    passes: u32,
+    scenes: Vec<PathBuf>,
+}
+
+fn from_repository(path: &str) -> PathBuf {
+    let p = Path::new(path);
+    if p.exists() {
+        p.to_path_buf()
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(p)
+    }
+}
+
+fn options() -> Result<Options, String> {
+    let mut o = Options {
+        mode: String::new(),
+        renders: 200,
+        width: 40,
+        height: 30,
+        samples: 8,
+        target: 0.01,
+        metric: Metric::RelMse,
+        confidence: 0.95,
+        reference_spp: 16384,
+        spp: 64,
+        passes: 8,
+        scenes: Vec::new(),
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        let mut value = |name: &str| -> Result<String, String> {
+            args.next().ok_or_else(|| format!("{name} needs a value"))
+        };
+        let number = |name: &str, text: String| -> Result<f64, String> {
+            text.parse::<f64>()
+                .map_err(|_| format!("{name}: `{text}` is not a number"))
+        };
+        match arg.as_str() {
+            "--bench" => {}
+            "--renders" | "--runs" => o.renders = number(&arg, value(&arg)?)? as usize,
+            "--size" => {
+                let text = value("--size")?;
+                let (w, h) = text.split_once('x').ok_or("--size is WxH, e.g. 40x30")?;
+                o.width = number("--size", w.into())? as u32;
+                o.height = number("--size", h.into())? as u32;
+            }
+            "--samples" => o.samples = number(&arg, value(&arg)?)? as u32,
+            "--target" => o.target = number(&arg, value(&arg)?)?,
+            "--metric" => o.metric = Metric::parse(&value(&arg)?)?,
+            "--confidence" => o.confidence = number(&arg, value(&arg)?)?,
+            "--reference-spp" => o.reference_spp = number(&arg, value(&arg)?)? as u32,
+            "--spp" => o.spp = number(&arg, value(&arg)?)? as u32,
+            "--passes" => o.passes = number(&arg, value(&arg)?)? as u32,
+            flag if flag.starts_with("--") => return Err(format!("unknown option {flag}")),
+            word if o.mode.is_empty() => o.mode = word.to_string(),
+            scene => o.scenes.push(from_repository(scene)),
+        }
+    }
+    if !["coverage", "cost", "calibration", "bias"].contains(&o.mode.as_str())
+        || o.scenes.is_empty()
+    {
+        return Err("usage: passes coverage|calibration|bias|cost [options] SCENE...".into());
+    }
+    Ok(o)
+}
+
+fn cpu_time() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec through a valid pointer.
+    if unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) } == 0 {
+        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+    } else {
+        f64::NAN
+    }
+}
+
+fn load(o: &Options, scene: &Path, extra: &[String]) -> lumis::scene::load::LoadedScene {
+    let mut overrides = vec![
+        format!("film.width={}", o.width),
+        format!("film.height={}", o.height),
+        format!("integrator.samples={}", o.samples),
+        "integrator.aovs=[]".to_string(),
+    ];
+    overrides.extend(extra.iter().cloned());
+    lumis::scene::load::load_scene(scene, &overrides)
+        .unwrap_or_else(|e| panic!("{}: {e}", scene.display()))
+}
+
+fn luminance(film: &lumis::film::Film) -> Vec<f64> {
+    film.color
+        .iter()
+        .map(|c| lumis::math::luminance(*c) as f64)
+        .collect()
+}
+
+/// The reference's per-pixel mean luminance and the variance of that mean, from 16 renders;
+/// cached in the temporary directory by scene, size, samples and spp.
+fn reference(o: &Options, scene: &Path) -> (Vec<f64>, Vec<f64>) {
+    const PARTS: u32 = 16;
+    let cache = std::env::temp_dir().join(format!(
+        "lumis-passes-reference-{}-{}x{}-{}-{}.txt",
+        scene.file_stem().unwrap().to_string_lossy(),
+        o.width,
+        o.height,
+        o.samples,
+        o.reference_spp
+    ));
+    if let Ok(text) = std::fs::read_to_string(&cache) {
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let n = values.len() / 2;
+        return (values[..n].to_vec(), values[n..].to_vec());
+    }
+    let mut loaded = load(
+        o,
+        scene,
+        &[format!("sampler.spp={}", (o.reference_spp / PARTS).max(1))],
+    );
+    let mut images = Vec::new();
+    for part in 0..PARTS {
+        loaded.scene.seed = 1_000_000 + u64::from(part);
+        loaded.integrator.preprocess(&loaded.scene);
+        let (film, _) =
+            lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 0, &|_| {})
+                .expect("render");
+        images.push(luminance(&film));
+    }
+    let n = f64::from(PARTS);
+    let pixels = images[0].len();
+    let mean: Vec<f64> = (0..pixels)
+        .map(|p| images.iter().map(|i| i[p]).sum::<f64>() / n)
+        .collect();
+    let variance: Vec<f64> = (0..pixels)
+        .map(|p| images.iter().map(|i| (i[p] - mean[p]).powi(2)).sum::<f64>() / (n - 1.0) / n)
+        .collect();
+    let text: Vec<String> = mean
+        .iter()
+        .chain(&variance)
+        .map(|v| format!("{v:e}"))
+        .collect();
+    std::fs::write(&cache, text.join(" ")).expect("the reference cache");
+    (mean, variance)
+}
+
+/// The true error of `image` against the reference, its own variance taken out.
+fn true_error(image: &[f64], reference: &(Vec<f64>, Vec<f64>), metric: Metric) -> f64 {
+    let (mean, variance) = reference;
+    let epsilon = match metric {
+        Metric::RelMse => (0.01 * mean.iter().sum::<f64>() / mean.len() as f64).powi(2),
+        Metric::Mse => 0.0,
+    };
+    image
+        .iter()
+        .zip(mean.iter().zip(variance))
+        .map(|(y, (m, v))| {
+            let d = match metric {
+                Metric::RelMse => m * m + epsilon,
+                Metric::Mse => 1.0,
+            };
+            if d > 0.0 {
+                ((y - m).powi(2) - v) / d
+            } else {
+                0.0
+            }
+        })
+        .sum::<f64>()
+        / image.len() as f64
+}
+
+/// The 95 % Wilson interval of `k` successes in `n` trials.
+fn wilson(k: usize, n: usize) -> (f64, f64) {
+    let (k, n, z) = (k as f64, n as f64, 1.959_964);
+    let centre = (k + z * z / 2.0) / (n + z * z);
+    let half = z / (n + z * z) * (k * (n - k) / n + z * z / 4.0).sqrt();
+    (centre - half, centre + half)
+}
+
+fn coverage(o: &Options, scene: &Path) {
+    let reference = reference(o, scene);
+    let settings = Settings {
+        stopping: Stopping::Target {
+            error: o.target,
+            max_spp: lumis::passes::DEFAULT_MAX_SPP,
+            max_time: None,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    let mut loaded = load(o, scene, &[]);
+    let (mut below, mut covered, mut above_high, mut spp, mut passes) = (0, 0, 0, Vec::new(), 0);
+    let (mut ratio, mut stops) = (0.0, std::collections::BTreeMap::new());
+    // N Q / M²: the image's variance relative to equal weights over the same samples.
+    let mut weights_cost = Vec::new();
+    for seed in 0..o.renders {
+        loaded.scene.seed = seed as u64;
+        loaded.integrator.preprocess(&loaded.scene);
+        let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
+        lumis::progressive::run(
+            &loaded.scene,
+            loaded.integrator.as_mut(),
+            &settings,
+            &mut state,
+            Scope::whole(0),
+            &AtomicBool::new(false),
+            &|_| {},
+            &mut |_| Control::Continue,
+        )
+        .expect("render");
+        let film = state
+            .sums
+            .resolve(&loaded.scene, loaded.integrator.as_ref());
+        let e = true_error(&luminance(&film), &reference, o.metric);
+        let stated = state.history.error().expect("an error estimate");
+        below += usize::from(e < o.target);
+        covered += usize::from(stated.low <= e && e <= stated.high);
+        above_high += usize::from(e > stated.high);
+        ratio += stated.value / e;
+        spp.push(state.history.samples());
+        let (given, squares) = state.history.given();
+        weights_cost.push(f64::from(state.history.samples()) * squares / (given * given));
+        passes += state.history.passes.len();
+        *stops
+            .entry(state.history.stopped.map_or("none", |s| s.name()))
+            .or_insert(0) += 1;
+    }
+    let n = o.renders;
+    let (b_lo, b_hi) = wilson(below, n);
+    let (c_lo, c_hi) = wilson(covered, n);
+    spp.sort_unstable();
+    let cost_mean = weights_cost.iter().sum::<f64>() / n as f64;
+    let cost_max = weights_cost.iter().copied().fold(0.0, f64::max);
+    println!(
+        "| {} | {} | {} | {:.3} [{:.3}, {:.3}] | {:.3} [{:.3}, {:.3}] | {:.3} | {:.3} | {} [{}, {}] | {:.1} | {:.3} (max {:.3}) | {:?} |",
+        scene.file_stem().unwrap().to_string_lossy(),
+        o.target,
+        n,
+        below as f64 / n as f64,
+        b_lo,
+        b_hi,
+        covered as f64 / n as f64,
+        c_lo,
+        c_hi,
+        above_high as f64 / n as f64,
+        ratio / n as f64,
+        spp[n / 2],
+        spp[0],
+        spp[n - 1],
+        passes as f64 / n as f64,
+        cost_mean,
+        cost_max,
+        stops
+    );
+}
+
+/// The error estimates at fixed samples (two passes of half the samples each) against the true
+/// error: the half-image estimate itself and the stated one (raised for its small-sample bias
+/// from the two passes), the mean of each over the true error's and how often their intervals
+/// hold it.
+fn calibration(o: &Options, scene: &Path) {
+    let reference = reference(o, scene);
+    let mut loaded = load(o, scene, &[]);
+    for spp in [4u32, 8, 16, 32, 64, 128, 256, 512, 1024] {
+        if spp > o.spp {
+            break;
+        }
+        let settings = Settings {
+            stopping: Stopping::Samples { spp, passes: 2 },
+            metric: o.metric,
+            confidence: o.confidence,
+        };
+        let (mut truth, mut raw, mut stated, mut raw_covered, mut covered) = (0.0, 0.0, 0.0, 0, 0);
+        for seed in 0..o.renders {
+            loaded.scene.seed = seed as u64;
+            loaded.scene.spp = spp;
+            loaded.integrator.preprocess(&loaded.scene);
+            let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
+            lumis::progressive::run(
+                &loaded.scene,
+                loaded.integrator.as_mut(),
+                &settings,
+                &mut state,
+                Scope::whole(0),
+                &AtomicBool::new(false),
+                &|_| {},
+                &mut |_| Control::Continue,
+            )
+            .expect("render");
+            let film = state
+                .sums
+                .resolve(&loaded.scene, loaded.integrator.as_ref());
+            let e = true_error(&luminance(&film), &reference, o.metric);
+            let (r, s) = (
+                state.history.raw_error().expect("an estimate"),
+                state.history.error().expect("an estimate"),
+            );
+            truth += e;
+            raw += r.value;
+            stated += s.value;
+            raw_covered += usize::from(r.low <= e && e <= r.high);
+            covered += usize::from(s.low <= e && e <= s.high);
+        }
+        let r = o.renders as f64;
+        println!(
+            "| {} | {spp} | {:.3e} | {:.3} | {:.3} | {:.3} | {:.3} |",
+            scene.file_stem().unwrap().to_string_lossy(),
+            truth / r,
+            raw / truth,
+            stated / truth,
+            raw_covered as f64 / r,
+            covered as f64 / r
+        );
+    }
+}
+
+/// The image's mean luminance after a render of `settings` from seed `seed`; `stop_below`: stop
+/// after the first pass whose own error estimate is below it (the biased rule).
+fn image_mean(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    settings: &Settings,
+    seed: u64,
+    stop_below: Option<f64>,
+) -> f64 {
+    loaded.scene.seed = seed;
+    loaded.integrator.preprocess(&loaded.scene);
+    let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        settings,
+        &mut state,
+        Scope::whole(0),
+        &AtomicBool::new(false),
+        &|_| {},
+        &mut |state| match (stop_below, state.history.raw_error()) {
+            (Some(target), Some(e)) if e.value < target => Control::Stop,
+            _ => Control::Continue,
+        },
+    )
+    .expect("render");
+    let film = state
+        .sums
+        .resolve(&loaded.scene, loaded.integrator.as_ref());
+    let y = luminance(&film);
+    y.iter().sum::<f64>() / y.len() as f64
+}
+
+fn mean_and_variance_of_mean(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let m = values.iter().sum::<f64>() / n;
+    let v = values.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, v / n)
+}
+
+fn bias(o: &Options, scene: &Path) {
+    use lumis::chi2::{FAMILY_FALSE_ALARM, z_limit};
+    let mut loaded = load(o, scene, &[format!("sampler.spp={}", o.spp)]);
+    let cap = lumis::passes::DEFAULT_MAX_SPP;
+    let planned = Settings {
+        stopping: Stopping::Target {
+            error: o.target,
+            max_spp: cap,
+            max_time: None,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    // Passes of 2 samples with every weight one (each planned for what remains of the cap).
+    let equal = Settings {
+        stopping: Stopping::Samples {
+            spp: cap,
+            passes: cap / 2,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    let plain = Settings::samples(o.spp);
+    let r = o.renders as u64;
+    let plain: Vec<f64> = (0..r)
+        .map(|s| image_mean(&mut loaded, &plain, 2_000_000 + s, None))
+        .collect();
+    let planned: Vec<f64> = (0..r)
+        .map(|s| image_mean(&mut loaded, &planned, s, None))
+        .collect();
+    let seen: Vec<f64> = (0..r)
+        .map(|s| image_mean(&mut loaded, &equal, 1_000_000 + s, Some(o.target)))
+        .collect();
+    let (m0, v0) = mean_and_variance_of_mean(&plain);
+    let limit = z_limit(FAMILY_FALSE_ALARM);
+    for (rule, values) in [
+        ("planned weights", &planned),
+        ("equal weights, stop after seeing", &seen),
+    ] {
+        let (m, v) = mean_and_variance_of_mean(values);
+        let se = (v + v0).sqrt() / m0;
+        let relative = m / m0 - 1.0;
+        println!(
+            "| {} | {} | {rule} | {} | {:+.4} | {:.4} | {:+.2} | {:.2} | {:.2} % |",
+            scene.file_stem().unwrap().to_string_lossy(),
+            o.target,
+            o.renders,
+            relative,
+            se,
+            relative / se,
+            limit,
+            100.0 * (limit + 1.281_552) * se
+        );
+    }
+}
+
+fn cost(o: &Options, scene: &Path) {
+    let mut loaded = load(o, scene, &[format!("sampler.spp={}", o.spp)]);
+    loaded.integrator.preprocess(&loaded.scene);
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let preview = dir.path().join("preview.exr");
+    let settings = Settings {
+        stopping: Stopping::Samples {
+            spp: o.spp,
+            passes: o.passes,
+        },
+        ..Settings::samples(o.spp)
+    };
+    let (mut plain, mut passes, mut logs) = (Vec::new(), Vec::new(), Vec::new());
+    for run in 0..o.renders {
+        // Interleaved, the order alternating.
+        let mut times = [0.0; 2];
+        for which in if run % 2 == 0 { [0, 1] } else { [1, 0] } {
+            let start = cpu_time();
+            let film = if which == 0 {
+                lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 1, &|_| {})
+                    .expect("render")
+                    .0
+            } else {
+                let mut state =
+                    RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
+                lumis::progressive::run(
+                    &loaded.scene,
+                    loaded.integrator.as_mut(),
+                    &settings,
+                    &mut state,
+                    Scope::whole(1),
+                    &AtomicBool::new(false),
+                    &|_| {},
+                    &mut |state| {
+                        lumis::render_files::write_previews(&state.sums, &preview, 0.0, None)
+                            .expect("preview");
+                        Control::Continue
+                    },
+                )
+                .expect("render");
+                state
+                    .sums
+                    .resolve(&loaded.scene, loaded.integrator.as_ref())
+            };
+            times[which] = cpu_time() - start;
+            std::hint::black_box(film);
+        }
+        plain.push(times[0]);
+        passes.push(times[1]);
+        logs.push((times[1] / times[0]).ln());
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let n = logs.len() as f64;
+    let mean = logs.iter().sum::<f64>() / n;
+    let sd = (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let half = 1.96 * sd / n.sqrt();
+    println!(
+        "{}: {} spp in {} passes against one pass, {} pairs on one thread: medians {:.4} s and {:.4} s, ratio of the medians {:.4}; mean log ratio gives {:.4} [{:.4}, {:.4}]",
+        scene.display(),
+        o.spp,
+        o.passes,
+        o.renders,
+        median(&mut passes),
+        median(&mut plain),
+        passes[passes.len() / 2] / plain[plain.len() / 2],
+        mean.exp(),
+        (mean - half).exp(),
+        (mean + half).exp()
+    );
+}
+
+fn main() {
+    lumis::link_plugins();
+    let o = match options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+    };
+    if o.mode == "coverage" {
+        println!(
+            "| scene | target | renders | e < E | interval holds e | e above interval | mean ê/e | spp median [min, max] | passes | N·Σu²n/M² | stops |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    }
+    if o.mode == "calibration" {
+        println!(
+            "| scene | spp | mean e | half-image ê / e | stated ê / e | coverage (half-image) | coverage (stated) |"
+        );
+        println!("|---|---|---|---|---|---|---|");
+    }
+    if o.mode == "bias" {
+        println!(
+            "| scene | target | renders | rule | relative bias | standard error | z | limit | detected with probability 0.9 |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|");
+    }
+    for scene in &o.scenes {
+        match o.mode.as_str() {
+            "coverage" => coverage(&o, scene),
+            "bias" => bias(&o, scene),
+            "calibration" => calibration(&o, scene),
+            _ => cost(&o, scene),
+        }
+    }
+}
