@@ -419,11 +419,14 @@ impl Converter {
     }
 
     fn bitmap(&mut self, p: &mut Properties) -> Result<Option<PluginSpec>, String> {
-        let Some((filename, _)) = p.string("filename")? else {
+        let Some((filename, l)) = p.string("filename")? else {
             self.problem(p.line, "a bitmap texture without `filename`");
             return Ok(None);
         };
-        let mut spec = PluginSpec::new(bitmap::NAME).string(bitmap::FILENAME, self.path(&filename));
+        let Some(found) = self.asset(&filename, l, "texture file") else {
+            return Ok(None);
+        };
+        let mut spec = PluginSpec::new(bitmap::NAME).string(bitmap::FILENAME, found);
         for (name, lumis, options) in [
             (
                 "filter_type",
