@@ -119,6 +119,15 @@ impl Converter {
             "roughconductor" => self.roughconductor(p),
             "plastic" => self.plastic(p, false),
             "roughplastic" => self.plastic(p, true),
+            "principled" | "principledthin" => {
+                let message = format!(
+                    "BSDF `{}` is not converted: lumis has no principled BSDF (none verified \
+                     against Mitsuba's)",
+                    p.kind
+                );
+                self.problem(p.line, message);
+                Ok(None)
+            }
             other => {
                 self.problem(p.line, format!("BSDF `{other}` is not converted"));
                 Ok(None)
