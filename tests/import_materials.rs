@@ -154,3 +154,22 @@ fn an_imported_surface_is_black_from_behind_unless_twosided() {
     assert_eq!(sums[0], 0.0, "one-sided from behind");
     assert!(sums[1] > 0.0, "two-sided from behind");
 }
+
+/// Mitsuba's `principled` is refused with the reason, naming its line.
+#[test]
+fn principled_is_refused_with_its_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = format!(
+        "<scene version=\"3.0.0\">{SENSOR}\n<shape type=\"sphere\"><bsdf type=\"principled\"/></shape></scene>"
+    );
+    std::fs::write(dir.path().join("scene.xml"), xml).unwrap();
+    let out = lumis(dir.path(), &["import", "scene.xml", "-o", "scene.ron"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains(
+            "scene.xml:9: BSDF `principled` is not converted: lumis has no principled BSDF"
+        ),
+        "{stderr}"
+    );
+}

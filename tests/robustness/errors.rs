@@ -60,7 +60,7 @@ fn unknown_bsdf_plugin_lists_known_ones_and_the_closest() {
             "bsdf `white`",
             "unknown bsdf plugin `difuse`",
             "did you mean `diffuse`",
-            "known bsdf plugins: diffuse",
+            "known bsdf plugins: conductor, diffuse",
         ],
     );
 }

@@ -120,6 +120,15 @@ impl Converter {
             "plastic" => self.plastic(p, false),
             "roughplastic" => self.plastic(p, true),
             "dielectric" | "thindielectric" | "roughdielectric" => self.dielectric(p),
+            "principled" | "principledthin" => {
+                let message = format!(
+                    "BSDF `{}` is not converted: lumis has no principled BSDF (none verified \
+                     against Mitsuba's)",
+                    p.kind
+                );
+                self.refuse(p, message);
+                Ok(None)
+            }
             other => {
                 let other = other.to_string();
                 self.refuse(p, format!("BSDF `{other}` is not converted"));
