@@ -558,7 +558,7 @@ fn main() {
     }
     if o.mode == "bias" {
         println!(
-            "| scene | target | renders | rule | relative bias | standard error | z | limit | detected with probability 0.9 |"
+            "| scene | target | rule | renders | relative bias | standard error | z | limit | detected with probability 0.9 |"
         );
         println!("|---|---|---|---|---|---|---|---|---|");
     }

@@ -7,7 +7,9 @@
 //! B = 2H₁/M, and the image is Ŷ = (A + B)/2. With d_p the metric's denominator (Y_p² + ε for the
 //! relative MSE, 1 for the MSE), the image's error and its estimate are
 //!
-//!     e = (1/P) Σ_p (Ŷ_p − Y_p)² / d_p,      ê = (1/P) Σ_p (A_p − B_p)² / (4 d_p),
+//! ```text
+//! e = (1/P) Σ_p (Ŷ_p − Y_p)² / d_p,      ê = (1/P) Σ_p (A_p − B_p)² / (4 d_p),
+//! ```
 //!
 //! and e − ê = (1/P) Σ_p X_p Z_p / d_p, X and Z the halves' deviations from Y_p: a sum of
 //! products of independent zero-mean terms, whatever the distribution of the samples. Its

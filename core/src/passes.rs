@@ -6,7 +6,9 @@
 //! the pixel from the start of pass k to the end of the render (decided, like n_k, before pass k
 //! runs), T the render's weight mass (P_0) and M_k = Σ_{i<k} u_i n_i the mass given so far,
 //!
-//!     u_k = (T − M_k) / P_k,
+//! ```text
+//! u_k = (T − M_k) / P_k,
+//! ```
 //!
 //! the remaining mass spread over the planned samples. A pixel's image is Σ_k u_k S_k / Σ_k u_k n_k
 //! (S_k the sum of its pass-k colours): the pass weights w_k = u_k n_k / T depend on earlier

@@ -28,7 +28,7 @@ pub fn add_film(estimate: &mut MemoryEstimate, window: &Window, channels: u64) {
 }
 
 /// Bytes per pixel of a render's sums kept between passes: the sample count, Σ u·colour and Σ u
-/// (docs/architecture.md, "Passes").
+/// (docs/integrators.md, "Passes").
 const SUMS_BYTES_PER_PIXEL: u64 = 4 + 24 + 8;
 
 /// Adds the sums a render in passes keeps for the whole film of `window` (with `stride`
