@@ -52,7 +52,8 @@ SCENES = [
      "PLY bunny (smooth normals), twosided diffuse, includes"),
     ("bunny-facet", "docs/scenes/shape_ply_bunny_facet.xml", {},
      "PLY bunny with face_normals"),
-    ("sensor-perspective", "docs/scenes/sensor_perspective.xml", {},
+    # Mitsuba reads `$spp` here before the included file's <default> for it: given.
+    ("sensor-perspective", "docs/scenes/sensor_perspective.xml", {"spp": "16"},
      "perspective sensor with focus_distance, Gaussian filter"),
     ("diffuse-plain", "docs/scenes/bsdf_diffuse_plain.xml", {},
      "material preview: .serialized, rotated env map, checkerboard plane"),
@@ -99,7 +100,9 @@ def plain(folder):
                     child.attrib.update(keep, type="diffuse")
                 elif child.tag == "texture" and node is root:
                     node.remove(child)
-                elif child.tag == "integrator" and child.get("type") in ("path", "moment"):
+                elif child.tag == "integrator" and (
+                        child.get("type") in ("path", "moment")
+                        or child.get("type", "").startswith("$")):
                     child.clear()
                     child.attrib["type"] = "direct"
                 else:

@@ -7,8 +7,8 @@
 //! - `intensity` (rgb, required, W/sr): radiant intensity along the axis.
 //! - `cutoff_angle` (float, default 20, degrees, in (0, 180]): the cone's half-angle; no light
 //!   leaves at this angle from the axis or beyond.
-//! - `beam_width` (float, default ¾ of `cutoff_angle`, degrees, in [0, `cutoff_angle`]): within
-//!   this angle from the axis the intensity is full.
+//! - `beam_width` (float, default ¾ of `cutoff_angle`: 15 with the default cut-off, degrees, in
+//!   [0, `cutoff_angle`]): within this angle from the axis the intensity is full.
 //! - `scale` (float, default 1): multiplies `intensity`.
 //!
 //! The intensity toward a direction at angle θ from the axis is `intensity` times the falloff
@@ -127,7 +127,8 @@ static PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: BEAM_WIDTH,
         kind: ParamKind::Float {
-            default: None,
+            // ¾ of the default cut-off; with another cut-off, ¾ of that (read in `create`).
+            default: Some(15.0),
             min: 0.0,
             max: 180.0,
         },

@@ -256,30 +256,31 @@ fn sampled_to_srgb(wavelengths: &[f64], values: &[f64], bounded: bool, d65: bool
 mod tests {
     use super::*;
 
-    /// Values Mitsuba 3.9.1 computes (`mi.spectrum_list_to_srgb` and `mi.xyz_to_srgb` in its
-    /// `scalar_rgb` variant, printed to 6 digits), which its loader gives reflectances
-    /// (bounded, D65) and emitters (unbounded, no D65).
+    /// Values Mitsuba 3.9.1's loader gives (`scalar_rgb`, printed to 6 digits: a `diffuse`
+    /// reflectance through `mi.traverse`, a `constant` emitter's `eval`): reflectances bounded
+    /// and under D65, emitters unbounded and without it. Mitsuba sums in f32, lumis in f64:
+    /// they agree within 5·10⁻⁶.
     #[test]
     fn spectra_become_the_colours_mitsuba_gives_them() {
         let s = parse("400:0.1, 500:0.5 600:0.9, 700:0.3").unwrap();
         let close = |a: [f64; 3], b: [f64; 3]| {
             a.iter()
                 .zip(b)
-                .all(|(x, y)| (x - y).abs() <= 2e-6 * y.abs().max(1.0))
+                .all(|(x, y)| (x - y).abs() <= 5e-6 * y.abs().max(1.0))
         };
         let reflectance = to_rgb(&s, false);
         assert!(
-            close(reflectance, [0.854798, 0.687539, 0.265015]),
+            close(reflectance, [0.854797, 0.68754, 0.265015]),
             "{reflectance:?}"
         );
         let emission = to_rgb(&s, true);
         assert!(
-            close(emission, [0.999232, 0.659701, 0.229444]),
+            close(emission, [0.999234, 0.6597, 0.229444]),
             "{emission:?}"
         );
         let flat = parse("300:1 900:1").unwrap();
-        assert!(close(to_rgb(&flat, true), [1.20488, 0.948229, 0.909267]));
-        assert!(close(to_rgb(&flat, false), [0.998983, 0.998872, 0.998802]));
+        assert!(close(to_rgb(&flat, true), [1.20488, 0.948228, 0.909267]));
+        assert!(close(to_rgb(&flat, false), [0.998985, 0.998874, 0.998802]));
         // A uniform spectrum: grey on a reflectance, D65's complement on an emitter.
         assert_eq!(to_rgb(&Spectrum::Uniform(0.5), false), [0.5; 3]);
         let white = to_rgb(&Spectrum::Uniform(2.0), true);
