@@ -3,6 +3,9 @@
 //! OBJ groups and shape options; glTF cameras, lights and materials; Mitsuba XML scenes (with
 //! includes, 0.x files, filters, spectra) convert and render, and what cannot be converted is
 //! named once with its file and line.
+//!
+//! Why one file of over 600 lines: one subject, scenes from other tools (OBJ, PLY, glTF, Mitsuba
+//! XML), whose tests share the writers of the same cube in each format.
 
 use crate::common;
 

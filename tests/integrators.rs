@@ -1,6 +1,9 @@
 //! The MIS integrator family: every registered integrator converges to the same image, `alpha`
 //! finds the supplemental's limits in scenes, beats `balance` on the Veach layout, and `alpha`
 //! with a fixed α reproduces `balance`, `bsdf` and `light` bit for bit.
+//!
+//! Why one file of over 600 lines: one subject, the MIS family converging to one image, whose tests
+//! share the scenes, the render statistics and the limits defined here.
 
 use crate::common;
 use common::{integrators, lumis, scene_file};

@@ -3,6 +3,9 @@
 //! into the image it would have given, and shows the integrator only the passes before each; the
 //! CLI's options, their bad values and the extremes (a target of 0, a millisecond, a black image,
 //! a target met at once, fireflies).
+//!
+//! Why one file of over 600 lines: one subject, renders in passes, whose tests share the scenes and
+//! the CLI helpers defined here.
 
 use crate::common;
 use common::{SMALL_SCENE, load, lumis, scene_file};

@@ -1,4 +1,7 @@
 //! Rendering end to end: determinism across thread counts, analytic answers, outputs.
+//!
+//! Why one file of over 600 lines: end-to-end render tests sharing the small scenes and helpers
+//! defined here.
 
 use crate::common;
 use common::{SMALL_SCENE, example_library, load, lumis, scene_file};

@@ -25,6 +25,9 @@ Conventions made equal here (each checked by the image comparison):
 - meshes: flat shaded in both (lumis ignores nothing it is given, so the dragon is written without
   vertex normals): the two renderers treat shading normals that disagree with the geometric one
   differently, and the race is about speed, not about that convention.
+
+Why one file of over 600 lines: the race's stages (writing each scene for both renderers, the
+agreement check, the timing) share the scene conversions and run records.
 """
 
 import argparse

@@ -15,6 +15,9 @@
 //! 0), so that a pass is not the luck of one seed: `docs/testing.md` runs the suite under several.
 //! Each test function is one family of checks whose false-alarm rate is [`FAMILY_FALSE_ALARM`],
 //! split over its checks with [`sidak`].
+//!
+//! Why one file of over 600 lines: the χ² harness and the statistical helpers every test crate
+//! shares (one public module, so that third-party plugins test with the same code); with its tests.
 
 use crate::sampler::Sampler;
 use glam::{DVec3, Vec3};

@@ -2,6 +2,9 @@
 //!
 //! Outputs are written to a temporary file in the target directory and renamed into place,
 //! so an interrupted run never leaves a truncated image.
+//!
+//! Why one file of over 600 lines: EXR output, EXR input and the PNG preview share the atomic
+//! writing and the layer layout; with its tests.
 
 use crate::film::Film;
 use crate::math::Rgb;

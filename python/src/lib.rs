@@ -5,6 +5,9 @@
 //! notebook cancels the render), and the output files are written by
 //! [`lumis_core::render_files`], the CLI's own writer. No panic reaches Python: every entry point
 //! catches unwinding and raises a `lumis.LumisError` instead.
+//!
+//! Why one file of over 600 lines: the extension module's Python classes and their conversions are
+//! one PyO3 module (its `study` part is in study.rs).
 
 mod convert;
 mod study;

@@ -10,6 +10,9 @@
 //! balance, relative variance at the target budget) is known to ±precision, or else the
 //! largest. A study that stops growing K as soon as the rule is met, and one that ran every
 //! round up to the cap, report the same K and so the same numbers.
+//!
+//! Why one file of over 600 lines: the study's statistics are one pure function of a plan and its
+//! results, kept in one place so that a report can be recomputed from results.csv; with its tests.
 
 use super::cell::CellResult;
 use super::config::StudyConfig;

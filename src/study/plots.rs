@@ -4,6 +4,9 @@
 //! clamping interval (paper Figure 2), pilot count M (Figure 7) and N with M fixed (Figures 3
 //! and 4). Log axes carry round ticks (1, 2, 5 × 10^k, or powers of two for budgets), and every
 //! figure has a legend.
+//!
+//! Why one file of over 600 lines: each plot of the study is one function over the same collected
+//! statistics and drawing helpers.
 
 use super::collect::{Extent, SceneAnalysis, SweepRow};
 use super::plan::Sweep;

@@ -2,6 +2,9 @@
 //! and ratio with its 95 % interval), `trade.csv` (per scene and integrator: time to the target
 //! error, speed-up over balance, error ratio at equal time) and `results.md`. All are rewritten
 //! atomically after every finished scene.
+//!
+//! Why one file of over 600 lines: every table of the study (results.csv, trade.csv, results.md)
+//! formats the same collected statistics with the same interval conventions.
 
 use super::collect::{Extent, Reading, Row, SceneAnalysis, Trade};
 use super::config::StudyConfig;

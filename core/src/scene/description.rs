@@ -6,6 +6,9 @@
 //!
 //! [`SceneDescription::to_ron`] writes a description back as a scene file reads when written by
 //! hand (`lumis import` builds one): each part on one line, fields at their defaults left out.
+//!
+//! Why one file of over 600 lines: the RON schema is written once, here: every struct of a scene
+//! file with its serde attributes and the docs the schema reference is checked against.
 
 use ron::Value;
 use ron::ser::PrettyConfig;

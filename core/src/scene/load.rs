@@ -1,5 +1,9 @@
 //! Builds a [`Scene`] from a RON file: parse, apply overrides, then construct every part by name
 //! through the registries. Every problem becomes a [`SceneError`] naming the file.
+//!
+//! Why one file of over 600 lines: building a scene is one sequence (plugins, film and camera,
+//! BSDFs, shapes and their emitters, lights, integrator) whose steps share the loader's state and
+//! error context.
 
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;

@@ -9,6 +9,9 @@
 //! its maintained fork needs a newer Rust than lumis supports, and neither reports the line or
 //! byte where a file goes wrong. Every count is checked against the bytes the file holds before
 //! anything is allocated for it.
+//!
+//! Why one file of over 600 lines: the header parser and the ASCII and binary body readers share
+//! the property layout they check; with its tests.
 
 use crate::geometry::Mesh;
 use glam::{Vec2, Vec3};

@@ -3,6 +3,9 @@
 //! reciprocity, and finite values for hostile input. The BSDFs come from the registry; each has
 //! an entry in [`plan`] with the configurations to test, and a BSDF registered without one fails
 //! `every_registered_bsdf_has_a_test_plan`.
+//!
+//! Why one file of over 600 lines: one plan of configurations for every registered BSDF, checked by
+//! every statistical test from the same table.
 
 use glam::{Vec2, Vec3};
 use lumis_core::bsdf::{Bsdf, BsdfContext, Side};

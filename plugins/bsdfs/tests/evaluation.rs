@@ -22,6 +22,8 @@
 //!
 //! Every quadrature states its error: the difference between the rule and the rule with twice
 //! the panels; tolerances are a multiple of it plus the plugins' f32 rounding.
+//!
+//! Why one file of over 600 lines: the closed forms and quadratures the BSDF checks share.
 
 use glam::{DVec3, Vec3};
 use lumis_core::bsdf::{Bsdf, BsdfContext};

@@ -11,6 +11,9 @@
 //!
 //! The records of one technique are drawn together into a buffer the caller reuses (no
 //! allocation per sample), so that a method weighs and observes them as plain slices.
+//!
+//! Why one file of over 600 lines: the estimator's scalar and lane forms of one record (light
+//! sample, BSDF sample, Dirac sample) stay together because they must give the same numbers.
 
 use crate::batch::BatchScratch;
 use crate::shading_point::ShadingPoint;

@@ -42,6 +42,9 @@
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (of the first
 //!   vertex, as the direct integrators write them) and "depth_samples" (the samples drawn at
 //!   each vertex depth, channels d1 … d7 and d8plus, summed over the pixel's camera samples).
+//!
+//! Why one file of over 600 lines: one plugin, one file: the path loop, its per-vertex estimates,
+//! roulette and the depth AOV, with its tests.
 
 use crate::allocation::{Method, Weighted};
 use crate::alpha_family::{

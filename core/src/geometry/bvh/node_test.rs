@@ -11,6 +11,9 @@
 //! pbrt-v4 §6.8.2): the far distance is enlarged by 2γ₃, the bound of the error of
 //! `(plane − origin) · (1 / direction)`. A ray aimed exactly at the edge of a flat box (an
 //! axis-aligned square light) therefore enters it, where a rounded slab test can miss it.
+//!
+//! Why one file of over 600 lines: the AVX2 and the portable node tests sit side by side, so that
+//! they are read and changed together (they must agree bit for bit), with their tests.
 
 use super::{PACKET_SIZE, WideNode};
 use crate::math::gamma;
