@@ -54,7 +54,8 @@ const SETTLED: f64 = 0.15;
 
 /// No last pass is planned before every pixel has this many samples: a light that a few samples
 /// per pixel miss shows no error yet (docs/integrators.md, "Passes"). One packet of camera
-/// samples ([`PACKET_SIZE`](crate::geometry::PACKET_SIZE)), so the passes before it are the only ones with lanes left empty.
+/// samples ([`PACKET_SIZE`](crate::geometry::PACKET_SIZE)): the passes before it are the only
+/// ones that leave lanes empty.
 pub const MIN_SAMPLES_BEFORE_STOP: u32 = 16;
 
 /// The confidence a last pass planned after the pass ending at `done` samples is sized with:
