@@ -431,8 +431,9 @@ fn the_cli_renders_to_a_target_and_refuses_bad_settings() {
 
 /// The extremes: a target of 0 (and one below what f32 resolves) stops at the cap and says so;
 /// a millisecond still closes the render with a last pass and says the time was exceeded; a
-/// black image has no error and stops after three passes; a loose target is met after the
-/// first pass, confirmed by a second and closed by a small third; pure BSDF sampling of a small, very bright light
+/// black image shows no error, an unknown error that runs to the cap; a loose target met after
+/// the first pass waits for 16 samples per pixel and is closed by a small last pass; pure BSDF
+/// sampling of a small, very bright light
 /// (fireflies) gives finite pixels and a finite error.
 #[test]
 fn the_extremes_of_a_render_in_passes() {
@@ -478,19 +479,35 @@ fn the_extremes_of_a_render_in_passes() {
             "black.ron",
             "--target-error",
             "0.01",
+            "--max-spp",
+            "64",
             "-o",
             "black.exr",
         ],
     ));
     let m = metadata(&d.join("black.exr"));
-    assert_eq!((m["passes"].as_str(), m["error"].as_str()), ("3", "0"));
+    assert_eq!(
+        (
+            m["stopped"].as_str(),
+            m["spp"].as_str(),
+            m["error"].as_str()
+        ),
+        ("max-spp", "64", "0")
+    );
 
     ok(&lumis(
         d,
         &["render", scene, "--target-error", "10", "-o", "loose.exr"],
     ));
     let m = metadata(&d.join("loose.exr"));
-    assert_eq!(m["pass_samples"], "2,4,6");
+    let ends: Vec<u32> = m["pass_samples"]
+        .split(',')
+        .map(|n| n.parse().unwrap())
+        .collect();
+    let [.., before, last] = ends[..] else {
+        panic!("{ends:?}")
+    };
+    assert!(before >= 16 && last == before + 2, "{ends:?}");
 
     let fireflies = SMALL_SCENE
         .replace(r#"type: "balance""#, r#"type: "bsdf""#)
@@ -612,4 +629,105 @@ fn resuming_refuses_another_render_and_damaged_files() {
         &["render", scene, "--passes", "1", "--resume", "done.lshard"],
     ));
     assert!(e.contains("is a complete render"), "{e}");
+}
+
+/// A render's image mean luminance under `settings` from `seed`, and its samples per pixel;
+/// `stop_below`: the biased rule, stopped after the first pass whose own error estimate is below
+/// it (equal weights).
+fn image_mean(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    settings: &Settings,
+    seed: u64,
+    stop_below: Option<f64>,
+) -> (f64, u32) {
+    loaded.scene.seed = seed;
+    loaded.integrator.preprocess(&loaded.scene);
+    let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        settings,
+        &mut state,
+        Scope::whole(0),
+        &AtomicBool::new(false),
+        &|_| {},
+        &mut |state| match (stop_below, state.history.raw_error()) {
+            (Some(target), Some(e)) if e.value < target => Control::Stop,
+            _ => Control::Continue,
+        },
+    )
+    .expect("render");
+    let film = state
+        .sums
+        .resolve(&loaded.scene, loaded.integrator.as_ref());
+    let mean = film
+        .color
+        .iter()
+        .map(|c| f64::from(lumis::math::luminance(*c)))
+        .sum::<f64>()
+        / film.color.len() as f64;
+    (mean, state.history.samples())
+}
+
+/// The combination rule on a scene, where a stop that sees the data is biased: a floor lit only
+/// by a small bright light found by BSDF sampling alone (each pixel's value is its rare hits),
+/// on a 4 × 4 film, so that the error estimate that decides a stop moves with the image's mean.
+/// `RENDERS` renders to the target by the planner, as many by the biased rule (equal weights,
+/// stopped after the first pass of 2 samples whose own estimate is below the target) and as
+/// many plain renders of `PLAIN_SPP`, seeds disjoint (offset by the test seed): each rule's mean
+/// image luminance against the plain renders' (Welch z). The planned rule's within the suite's
+/// false-alarm limit, the biased rule's beyond it.
+#[test]
+fn a_stop_after_seeing_is_caught_on_a_scene_and_the_planned_stop_is_not() {
+    use lumis::chi2::{FAMILY_FALSE_ALARM, test_seed, z_limit};
+    const RENDERS: u64 = 400;
+    const PLAIN_SPP: u32 = 1024;
+    const TARGET: f64 = 0.2;
+    const CAP: u32 = 4096;
+    let text = SMALL_SCENE
+        .replace(r#"type: "balance""#, r#"type: "bsdf""#)
+        .replace("width: 16, height: 16", "width: 4, height: 4");
+    let (_dir, path) = scene_file("fireflies.ron", &text);
+    let mut loaded = load(&path, &[&format!("sampler.spp={PLAIN_SPP}")]).unwrap();
+    let first = test_seed() * 1_000_000;
+    let planned = target(TARGET, CAP);
+    let equal = Settings {
+        stopping: Stopping::Samples {
+            spp: CAP,
+            passes: CAP / 2,
+        },
+        ..Settings::samples(1)
+    };
+    // The mean of the renders' means, its variance, and the median samples per pixel.
+    let mut means = |settings: &Settings, offset: u64, stop_below: Option<f64>| {
+        let renders: Vec<(f64, u32)> = (0..RENDERS)
+            .map(|r| image_mean(&mut loaded, settings, first + offset + r, stop_below))
+            .collect();
+        let n = renders.len() as f64;
+        let m = renders.iter().map(|r| r.0).sum::<f64>() / n;
+        let v = renders.iter().map(|r| (r.0 - m).powi(2)).sum::<f64>() / (n - 1.0);
+        let mut spp: Vec<u32> = renders.iter().map(|r| r.1).collect();
+        spp.sort_unstable();
+        (m, v / n, spp[spp.len() / 2])
+    };
+    let (m0, v0, _) = means(&Settings::samples(PLAIN_SPP), 0, None);
+    let (m1, v1, spp1) = means(&planned, 1000, None);
+    let (m2, v2, spp2) = means(&equal, 2000, Some(TARGET));
+    let z = |m: f64, v: f64| (m - m0) / (v + v0).sqrt();
+    let (z_planned, z_seen) = (z(m1, v1), z(m2, v2));
+    let limit = z_limit(FAMILY_FALSE_ALARM / 2.0);
+    eprintln!(
+        "plain {m0:.5}; planned {:+.4} (z = {z_planned:+.2}, median {spp1} spp); equal weights \
+         after seeing {:+.4} (z = {z_seen:+.2}, median {spp2} spp); limit {limit:.2}",
+        m1 / m0 - 1.0,
+        m2 / m0 - 1.0
+    );
+    assert!(
+        z_planned.abs() < limit,
+        "the planned rule is biased: z = {z_planned}"
+    );
+    assert!(
+        z_seen.abs() > limit,
+        "the biased rule is not caught: z = {z_seen}"
+    );
 }

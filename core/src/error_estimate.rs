@@ -14,10 +14,18 @@
 //! and e − ê = (1/P) Σ_p X_p Z_p / d_p, X and Z the halves' deviations from Y_p: a sum of
 //! products of independent zero-mean terms, whatever the distribution of the samples. Its
 //! variance, (1/P²) Σ_p Var(A_p)² / d_p², is estimated by (1/P²) Σ_p (A_p − B_p)⁴ / (12 d_p²)
-//! (exact for normal half-means, larger for heavy-tailed ones), which gives the interval.
+//! (exact for normal half-means, larger for heavy-tailed ones).
+//!
+//! The interval and the bound a stop is planned with use the distribution of e/ê rather than a
+//! normal one: each pixel's term of e and of ê is c_p χ²₁ (normal half-means, c_p the pixel's
+//! variance over d_p), the terms of e from X + Z and those of ê from X − Z, independent; so e and
+//! ê are each about (Σc/P) χ²_ν/ν with ν = (Σc)²/Σc² (Satterthwaite), and e/ê is about F(ν, ν).
+//! ν is estimated from the terms as 3(Σt)²/Σt² (E t² = 3c²), at most the pixels: a few dominant
+//! pixels (fireflies) make ν small and the interval wide and skewed upwards, where a normal
+//! interval over 1 200 pixels would be narrow.
 
 use crate::film_sums::FilmSums;
-use statrs::distribution::{ContinuousCDF, Normal};
+use statrs::distribution::{ContinuousCDF, FisherSnedecor, Normal};
 
 /// ε of the relative MSE as a fraction of the image's mean luminance, as `lumis study`'s default
 /// `--epsilon`: a pixel's denominator is Y² + (0.01 Ȳ)², so that black pixels do not dominate.
@@ -59,25 +67,45 @@ pub struct ErrorEstimate {
     pub confidence: f64,
     /// ê: an unbiased estimate of the image's error e.
     pub value: f64,
-    /// An interval that holds e with probability `confidence` (normal approximation over the
-    /// pixels): ê ± z √Var(e − ê), the lower end at least 0.
+    /// An interval that holds e with probability `confidence`: ê times the two-sided quantiles
+    /// of F(ν, ν) ([`ErrorEstimate::degrees_of_freedom`]).
     pub low: f64,
     pub high: f64,
-    /// Var(ê) around its expectation (half of Var(e − ê): e and ê are alike): what a prediction
-    /// of later error from ê must allow for.
+    /// Var(ê) around its expectation (half of Var(e − ê): e and ê are alike), 2ê²/ν: what a
+    /// prediction of later error from ê must allow for.
     pub variance: f64,
     /// Pixels with samples, over which the error is averaged.
     pub pixels: u64,
 }
 
-/// The two-sided normal quantile of `confidence` (0.95: 1.96).
-pub fn two_sided_z(confidence: f64) -> f64 {
-    standard_normal().inverse_cdf(0.5 + confidence / 2.0)
+impl ErrorEstimate {
+    /// ν, the effective degrees of freedom of ê (2ê²/Var ê, at most the pixels); `None` when ê
+    /// or its variance is 0: no sample has shown any error, which says nothing of the error of
+    /// light no sample has found yet (an unknown error, not a zero one).
+    pub fn degrees_of_freedom(&self) -> Option<f64> {
+        let nu = 2.0 * self.value * self.value / self.variance;
+        (self.value > 0.0 && self.variance > 0.0 && nu.is_finite())
+            .then(|| nu.min(self.pixels as f64))
+    }
+
+    /// A bound that the error of an image whose expected error is this estimate's stays below
+    /// with one-sided probability `confidence`: ê times the `confidence` quantile of F(ν, ν),
+    /// for ê's own error and the image's fluctuation together. `None` when the error is unknown.
+    pub fn upper_bound(&self, confidence: f64) -> Option<f64> {
+        let nu = self.degrees_of_freedom()?;
+        Some(self.value * ratio_quantile(nu, confidence))
+    }
 }
 
-/// The one-sided normal quantile of `confidence` (0.95: 1.645).
-pub fn one_sided_z(confidence: f64) -> f64 {
-    standard_normal().inverse_cdf(confidence)
+/// The `p` quantile of F(ν, ν), the distribution of the ratio of two independent χ²_ν/ν; for
+/// large ν its logarithm is normal with variance 4/ν.
+pub fn ratio_quantile(nu: f64, p: f64) -> f64 {
+    if nu > 1e4 {
+        return (standard_normal().inverse_cdf(p) * (4.0 / nu).sqrt()).exp();
+    }
+    FisherSnedecor::new(nu, nu)
+        .expect("positive degrees of freedom")
+        .inverse_cdf(p)
 }
 
 fn standard_normal() -> Normal {
@@ -153,16 +181,21 @@ pub fn estimate(sums: &FilmSums, metric: Metric, confidence: f64) -> Option<Erro
     if !(value.is_finite() && variance_of_difference.is_finite()) {
         return None;
     }
-    let half_width = two_sided_z(confidence) * variance_of_difference.sqrt();
-    Some(ErrorEstimate {
+    let mut estimate = ErrorEstimate {
         metric,
         confidence,
         value,
-        low: (value - half_width).max(0.0),
-        high: value + half_width,
+        low: value,
+        high: value,
         variance: variance_of_difference / 2.0,
         pixels,
-    })
+    };
+    if let Some(nu) = estimate.degrees_of_freedom() {
+        let tail = (1.0 - confidence) / 2.0;
+        estimate.low = value * ratio_quantile(nu, tail);
+        estimate.high = value * ratio_quantile(nu, 1.0 - tail);
+    }
+    Some(estimate)
 }
 
 /// Each pixel's term of ê (row order of the window: `width` × `height`), for the heat map; 0
@@ -185,10 +218,22 @@ pub fn error_map(sums: &FilmSums, metric: Metric) -> Vec<f64> {
 mod tests {
     use super::*;
 
+    /// F(ν, ν)'s quantiles: reciprocal about the median, the large-ν approximation continuous
+    /// with the exact one, wide for few degrees of freedom (F(1, 1) at 0.975: tan²(0.4875 π)).
     #[test]
-    fn quantiles() {
-        assert!((two_sided_z(0.95) - 1.959_964).abs() < 1e-5);
-        assert!((one_sided_z(0.95) - 1.644_854).abs() < 1e-5);
+    fn ratio_quantiles() {
+        for nu in [1.0, 7.5, 100.0, 5000.0] {
+            let (lo, hi) = (ratio_quantile(nu, 0.025), ratio_quantile(nu, 0.975));
+            assert!((lo * hi - 1.0).abs() < 1e-6, "{nu}: {lo} {hi}");
+        }
+        let exact = ratio_quantile(1e4, 0.95);
+        let approximate = ratio_quantile(1.0001e4, 0.95);
+        assert!(
+            (exact / approximate - 1.0).abs() < 1e-4,
+            "{exact} {approximate}"
+        );
+        let f11 = (0.4875 * std::f64::consts::PI).tan().powi(2);
+        assert!((ratio_quantile(1.0, 0.975) / f11 - 1.0).abs() < 1e-6);
     }
 
     #[test]

@@ -20,7 +20,7 @@
 //!
 //! Over 600 lines: about half is the planner's tests, which drive its private functions.
 
-use crate::error_estimate::{ErrorEstimate, Metric, one_sided_z};
+use crate::error_estimate::{ErrorEstimate, Metric};
 use crate::film_sums::FilmSums;
 
 /// Samples per pixel of a target or time render's first pass, planned with no data: its weight
@@ -51,6 +51,28 @@ const PLAN_MARGIN: f64 = 1.25;
 /// agrees within this fraction (docs/integrators.md, "Passes"): a half-image estimate is low
 /// while rare bright samples are still unseen, and rises towards the error as they appear.
 const SETTLED: f64 = 0.15;
+
+/// No last pass is planned before every pixel has this many samples: a light that a few samples
+/// per pixel miss shows no error yet (docs/integrators.md, "Passes"). One packet of camera
+/// samples ([`PACKET_SIZE`](crate::geometry::PACKET_SIZE)): the passes before it are the only
+/// ones that leave lanes empty.
+pub const MIN_SAMPLES_BEFORE_STOP: u32 = 16;
+
+/// The confidence a last pass planned after the pass ending at `done` samples is sized with:
+/// every pass from [`MIN_SAMPLES_BEFORE_STOP`] on is a look at which a low estimate could plan
+/// the stop, so the render's 1 − `confidence` is spent over the looks, half at the first, a
+/// quarter at the second, …: the chance that any planned stop misses is at most the sum,
+/// 1 − `confidence`, however many looks the render takes (Bonferroni). Looks are counted by
+/// samples (they double), so the confidence is a function of `done` alone.
+pub fn stop_confidence(confidence: f64, done: u32) -> f64 {
+    let mut look = 1;
+    let mut samples = MIN_SAMPLES_BEFORE_STOP;
+    while samples < done {
+        samples = samples.saturating_mul(2);
+        look += 1;
+    }
+    1.0 - (1.0 - confidence) / 2f64.powi(look)
+}
 
 /// A pass as decided before it runs, for every pixel alike.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -540,24 +562,15 @@ fn even_down(n: u64) -> u64 {
     n - n % 2
 }
 
-/// The samples a last pass needs so that the image's error is below `target` with probability
-/// `confidence`, predicted from the error `estimate` of the image so far (∞ if no last pass can:
-/// the earlier passes' share of the error is already above the target).
+/// The samples a last pass needs so that the image's error is below `target`, predicted from
+/// `upper`, a bound of the error of the image so far that holds for the image after the last
+/// pass once scaled ([`ErrorEstimate::upper_bound`]) (∞ if no last pass can: the earlier
+/// passes' share of the error is already above the target).
 ///
 /// With M, Q the mass and Σ u² n so far, the image's error per unit of per-sample error is Q/M²
-/// now and (Q + (T − M)²/n)/T² after a last pass of n samples. The ratio q(n) of the two scales
-/// the expected error; the prediction allows for ê's own error and for the fluctuation of the
-/// final image's error about its expectation, each with ê's variance scaled by q²: the final
-/// error is below q(n)·(ê + z √(2 Var ê)) with probability `confidence` (z one-sided).
-pub fn samples_for_target(
-    target: f64,
-    estimate: &ErrorEstimate,
-    confidence: f64,
-    mass: f64,
-    given: f64,
-    squares: f64,
-) -> f64 {
-    let upper = estimate.value + one_sided_z(confidence) * (2.0 * estimate.variance).sqrt();
+/// now and (Q + (T − M)²/n)/T² after a last pass of n samples; the ratio q(n) of the two scales
+/// the bound, and the last pass is the smallest n with q(n)·upper ≤ target.
+pub fn samples_for_target(target: f64, upper: f64, mass: f64, given: f64, squares: f64) -> f64 {
     if upper <= 0.0 {
         return 0.0;
     }
@@ -676,22 +689,24 @@ fn plan(
             (limit, limit_stop) = (fit, stop);
         }
     }
+    // An estimate of 0 is an unknown error (no sample has shown any), never a reason to stop.
     let (mut needed, mut reachable) = (f64::INFINITY, false);
-    if let (Some(target), Some(estimate)) = (target, history.error()) {
+    if let (Some(target), Some(estimate)) = (target, history.error())
+        && let Some(upper) = estimate.upper_bound(stop_confidence(confidence, done))
+    {
         let (given, squares) = history.given();
         needed = even_up(samples_for_target(
             target,
-            &estimate,
-            confidence,
+            upper,
             history.mass,
             given,
             squares,
         ));
         // The per-sample error over the cap: the error of an image of the cap's samples.
-        reachable = estimate.value * given * given / squares / cap as f64 <= target;
+        reachable = upper * given * given / squares / cap as f64 <= target;
     }
     let growth = even_down(u64::from(GROWTH * done)).max(2);
-    let settled = target.is_none() || history.settled();
+    let settled = target.is_none() || (done >= MIN_SAMPLES_BEFORE_STOP && history.settled());
     let pass = |samples: u64, planned: u64, stop: Option<Stop>| {
         Decision::Pass(
             PlannedPass {
@@ -830,17 +845,19 @@ mod tests {
         assert_eq!(run(&target(0.0, 31), 1.0).samples(), 30);
     }
 
-    /// A target met after the first pass is confirmed by a second (the last pass waits for
-    /// two estimates that agree) and closed by a small last pass (the first pass's weight is
-    /// 2/T, so the render needs one after it).
+    /// A target met after the first pass waits for the minimum samples before any stop and is
+    /// closed by a small last pass (the first pass's weight is 2/T, so the render needs one
+    /// after it).
     #[test]
-    fn a_target_met_at_once_takes_a_small_last_pass() {
+    fn a_target_met_at_once_takes_a_small_last_pass_after_the_minimum() {
         let history = run(&target(0.5, 4096), 0.1);
-        assert_eq!(history.passes.len(), 3);
-        assert_eq!(history.samples(), 6);
-        // A black image (no error at all).
-        let history = run(&target(0.01, 4096), 0.0);
-        assert_eq!((history.passes.len(), history.samples()), (3, 6));
+        let ends: Vec<u32> = history.passes.iter().map(|p| p.pass.end).collect();
+        assert_eq!(ends, [2, 4, 8, 16, 18]);
+        assert_eq!(history.stopped, Some(Stop::Target));
+        // A black image: no sample has shown an error, which is unknown, not zero: the cap.
+        let history = run(&target(0.01, 256), 0.0);
+        assert_eq!(history.stopped, Some(Stop::MaxSpp));
+        assert_eq!(history.samples(), 256);
     }
 
     /// The stated error is the half-image estimate raised by the Richardson step: exact under
@@ -1019,7 +1036,9 @@ mod tests {
                 } else {
                     0.0
                 };
-                history.passes.last_mut().unwrap().error = Some(estimate(error, 0.0));
+                // A sample variance of n − 1 degrees of freedom: Var ê = 2ê²/(n − 1).
+                history.passes.last_mut().unwrap().error =
+                    Some(estimate(error, 2.0 * error * error / (n - 1.0)));
                 history.stopped = stop;
             }
             let (given, q) = history.given();
@@ -1065,22 +1084,26 @@ mod tests {
     }
 
     #[test]
-    fn the_prediction_scales_the_error_and_its_margin() {
+    fn the_prediction_scales_the_bound() {
         // After 2 plain samples (T = M = 2 ... a render planned for 2 more at weight one).
-        let e = estimate(0.1, 0.0);
-        // Exactly proportional weights: q(n) = 2/(2 + n), target 0.01 → n = 18.
-        let n = samples_for_target(0.01, &e, 0.95, 20.0, 2.0, 2.0);
+        // Exactly proportional weights: q(n) = 2/(2 + n), bound 0.1, target 0.01 → n = 18.
+        let n = samples_for_target(0.01, 0.1, 20.0, 2.0, 2.0);
         assert!((n - 18.0).abs() < 1e-9, "{n}");
-        // A margin asks for more.
-        let wide = estimate(0.1, 1e-4);
-        assert!(samples_for_target(0.01, &wide, 0.95, 20.0, 2.0, 2.0) > 18.0);
-        assert_eq!(
-            samples_for_target(0.0, &e, 0.95, 20.0, 2.0, 2.0),
-            f64::INFINITY
-        );
-        assert_eq!(
-            samples_for_target(0.01, &estimate(0.0, 0.0), 0.95, 20.0, 2.0, 2.0),
-            0.0
-        );
+        assert!(samples_for_target(0.01, 0.2, 20.0, 2.0, 2.0) > 18.0);
+        assert_eq!(samples_for_target(0.0, 0.1, 20.0, 2.0, 2.0), f64::INFINITY);
+        // An estimate of 0 bounds nothing: the planner takes it as unknown.
+        assert_eq!(estimate(0.0, 0.0).upper_bound(0.95), None);
+    }
+
+    /// The looks spend 1 − confidence: half at 16 samples, a quarter at 32, … (any `done` in
+    /// between counts as the next look), and the confidences' misses sum to less than 1 − c.
+    #[test]
+    fn the_stop_confidence_spends_its_error_over_the_looks() {
+        let c = 0.95;
+        assert!((stop_confidence(c, 16) - 0.975).abs() < 1e-12);
+        assert!((stop_confidence(c, 17) - 0.9875).abs() < 1e-12);
+        assert!((stop_confidence(c, 32) - 0.9875).abs() < 1e-12);
+        let misses: f64 = (0..28).map(|k| 1.0 - stop_confidence(c, 16 << k)).sum();
+        assert!(misses < 1.0 - c, "{misses}");
     }
 }
