@@ -173,6 +173,21 @@ impl<'a> PilotSamples<'a> {
         mean_and_square(strata, self.counts())
     }
 
+    /// The paper's Î₁ and Î₂ ([`crate::second_order`]), the integrals ∫ f² Δp / p̄² and
+    /// ∫ f² Δp² / p̄³ that samples at α = ½ estimate, estimated from these records at their own
+    /// split: with b = p̄ / p_s and d = Δp / p_s, the means of y² d / b² and y² d² / b³ (at
+    /// β = ½ the paper's terms; a Dirac sample adds 2β y² to both, the paper's 4 (f/p_B)² at ½).
+    pub fn second_order(&self) -> (f64, f64) {
+        let (mut i1, mut i2) = (0.0, 0.0);
+        for (y, r_b, r_l) in self.terms() {
+            let (b, d) = (0.5 * (r_b + r_l), 0.5 * (r_b - r_l));
+            let y2 = y * y;
+            i1 += y2 * d / (b * b);
+            i2 += y2 * d * d / (b * b * b);
+        }
+        (i1 * self.inv_count, i2 * self.inv_count)
+    }
+
     /// m̂, μ̂_B, μ̂_L and the unbiased estimates of μ_B² and μ_L² at `alpha`.
     pub fn sums(&self, alpha: f64) -> PilotSums {
         let mut second_moment = 0.0;

@@ -20,6 +20,12 @@
 //!   stratified estimator (as `exact_alpha` with `variance: "stratified"`); "second_order" — the
 //!   paper's α̂ from the pooled Î₁, Î₂.
 //! - `clamp` (interval, default (0.025, 0.975), within [0, 1]): the interval α is chosen in.
+//! - `statistics` (choice, default "pilot"): where the statistics come from: "pilot" — the
+//!   pilot pass above; "passes" — the earlier passes of a render in passes (docs/integrators.md,
+//!   "Learned α"): every sample adds the objective (or Î₁, Î₂) to its pixel's sums, pooled as
+//!   above over a window whose radius is `radius` pixels at 256 pixels along the image's larger
+//!   side and scales with it; every sample of a pass at the α its pixel and light learned before
+//!   it; the first pass (and a one-pass render) at α = ½. `pilot_samples` does not apply.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 //!
 //! Memory: 4 · 18 bytes per pixel and light for the pilot's statistics (4 · 3 for
@@ -27,7 +33,10 @@
 //! light.
 
 use crate::allocation::{Allocation, Weighted};
-use crate::alpha_family::{CLAMP_SPEC, pilot_samples_spec, read_clamp, read_pilot_samples};
+use crate::alpha_family::{
+    CLAMP_SPEC, STATISTICS_SPEC, pilot_samples_spec, read_clamp, read_learns, read_pilot_samples,
+};
+use crate::learned::LearnedAlpha;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
 use crate::phase::{LightEstimate, Observer, PhaseRole, SampleSplit};
@@ -53,7 +62,7 @@ pub const EXACT: &str = "exact";
 pub const STRATIFIED: &str = "stratified";
 pub const SECOND_ORDER: &str = "second_order";
 /// Evenly spaced α in the clamp interval at which each pixel's objective is kept.
-const NODES: usize = 17;
+pub(crate) const NODES: usize = 17;
 
 static PARAMS: &[ParamSpec] = &[
     SAMPLES_SPEC,
@@ -80,6 +89,7 @@ static PARAMS: &[ParamSpec] = &[
         description: "exact: minimum of the pooled second moment; stratified: of the pooled variance of the stratified estimator; second_order: the paper's α̂ from pooled sums",
     },
     CLAMP_SPEC,
+    STATISTICS_SPEC,
     AOVS_SPEC,
 ];
 
@@ -93,7 +103,7 @@ pub enum Pooled {
 }
 
 impl Pooled {
-    fn per_light(self) -> usize {
+    pub(crate) fn per_light(self) -> usize {
         match self {
             Pooled::Nodes(_) => NODES + 1,
             Pooled::SecondOrder => 3,
@@ -110,6 +120,15 @@ pub struct AlphaMap {
 }
 
 impl AlphaMap {
+    /// α of each pixel of `window` (row order) and light, NaN where there is none.
+    pub fn new(window: Window, lights: usize, alphas: Vec<f32>) -> Self {
+        AlphaMap {
+            window: Some(window),
+            lights,
+            alphas,
+        }
+    }
+
     /// α at `pixel` (film coordinates) for `light`, if the pilot covered it.
     pub fn get(&self, pixel: UVec2, light: usize) -> Option<f64> {
         let w = self.window?;
@@ -125,7 +144,7 @@ impl AlphaMap {
 }
 
 /// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative.
-fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> {
+pub(crate) fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> {
     match pooled {
         Pooled::SecondOrder => {
             (values[2] > 0.0).then_some(())?;
@@ -273,16 +292,21 @@ impl Allocation for PooledAlpha {
     }
 }
 
-/// The allocation of the parameters above but `samples` and `aovs`, for N = `samples` (also
-/// `path`'s at its first vertex).
-pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha, PluginError> {
-    let pilot_samples = read_pilot_samples(params, 8, samples)?;
-    let radius = params.int(RADIUS)? as u32;
-    let pooled = match params.choice(OBJECTIVE)? {
+/// Reads `objective`.
+fn read_pooled(params: &mut Params) -> Result<Pooled, PluginError> {
+    Ok(match params.choice(OBJECTIVE)? {
         EXACT => Pooled::Nodes(Objective::Mixture),
         STRATIFIED => Pooled::Nodes(Objective::Stratified),
         _ => Pooled::SecondOrder,
-    };
+    })
+}
+
+/// The allocation of the parameters above but `samples`, `statistics` and `aovs`, for N =
+/// `samples` (also `path`'s at its first vertex).
+pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha, PluginError> {
+    let pilot_samples = read_pilot_samples(params, 8, samples)?;
+    let radius = params.int(RADIUS)? as u32;
+    let pooled = read_pooled(params)?;
     let clamp = read_clamp(params)?;
     Ok(PooledAlpha {
         samples,
@@ -297,6 +321,13 @@ pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha,
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     let samples = read_samples(params)?;
+    if read_learns(params)? {
+        let radius = params.int(RADIUS)? as u32;
+        let pooled = read_pooled(params)?;
+        let clamp = read_clamp(params)?;
+        let allocation = LearnedAlpha::new(samples, pooled, clamp, radius);
+        return MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)));
+    }
     let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }
