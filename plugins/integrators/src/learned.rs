@@ -186,10 +186,7 @@ impl Allocation for LearnedAlpha {
                 if !pilot.informative() {
                     return;
                 }
-                let step = (self.clamp[1] - self.clamp[0]) / (NODES - 1) as f64;
-                for (k, v) in out[..NODES].iter_mut().enumerate() {
-                    *v += pilot.objective(objective, self.clamp[0] + step * k as f64);
-                }
+                pilot.add_objective_at_nodes(objective, self.clamp, &mut out[..NODES]);
                 out[NODES] += 1.0;
             }
             Pooled::SecondOrder => {
