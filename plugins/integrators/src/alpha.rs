@@ -36,10 +36,9 @@ use crate::alpha_family::{
     read_learns,
 };
 use crate::fixed_alpha::FixedAlpha;
-use crate::learned::LearnedAlpha;
+use crate::learned::{LearnedAlpha, Pooled};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::phase::LightEstimate;
-use crate::pooled_alpha::Pooled;
 use crate::sampling::LightSampling;
 use crate::second_order::SecondOrderMoments;
 use crate::weighting::{Balance, PerSample, Weighting};

@@ -37,10 +37,9 @@ use crate::alpha_family::{
     self, ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, STATISTICS_SPEC,
     TwoPhases, VARIANCE_SPEC, read_clamp, read_learns, read_mode, read_stratified,
 };
-use crate::learned::LearnedAlpha;
+use crate::learned::{LearnedAlpha, Pooled};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
-use crate::pooled_alpha::Pooled;
 use crate::weighting::{Balance, PerSample};
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamSpec, Params, PluginError};

@@ -19,12 +19,14 @@
 //! and a pixel's surface when pooling.
 
 use crate::allocation::Allocation;
-use crate::moments::PilotSamples;
+use crate::moments::{Objective, PilotSamples};
 use crate::phase::{LightEstimate, PhaseRole, SampleSplit};
 use crate::pilot::{self, Surface};
-use crate::pooled_alpha::{AlphaMap, NODES, Pooled, alpha_of};
 use crate::sampling::LightSampling;
+use crate::second_order::second_order_alpha;
 use crate::weighting::Weighting;
+use glam::UVec2;
+use lumis_core::output::Window;
 use lumis_core::passes::PassContext;
 use lumis_core::scene::Scene;
 use rayon::prelude::*;
@@ -32,6 +34,85 @@ use rayon::prelude::*;
 /// The image size, in pixels along its larger side, at which a pooling radius in pixels is
 /// itself: radii scale with the image from there.
 pub const REFERENCE_SIZE: f64 = 256.0;
+
+/// Evenly spaced α in the clamp interval at which each pixel's objective is kept.
+pub const NODES: usize = 17;
+
+/// What each pixel keeps of its pilot, per light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Pooled {
+    /// An objective of [`crate::moments`] at [`NODES`] α, then 1 if the pilot is informative.
+    Nodes(Objective),
+    /// Î₁, Î₂ (sums), then 1 if Î₂ > 0.
+    SecondOrder,
+}
+
+impl Pooled {
+    pub fn per_light(self) -> usize {
+        match self {
+            Pooled::Nodes(_) => NODES + 1,
+            Pooled::SecondOrder => 3,
+        }
+    }
+}
+
+/// α per pixel of the window and light.
+#[derive(Clone, Debug, Default)]
+pub struct AlphaMap {
+    window: Option<Window>,
+    lights: usize,
+    alphas: Vec<f32>,
+}
+
+impl AlphaMap {
+    /// α of each pixel of `window` (row order) and light, NaN where there is none.
+    pub fn new(window: Window, lights: usize, alphas: Vec<f32>) -> Self {
+        AlphaMap {
+            window: Some(window),
+            lights,
+            alphas,
+        }
+    }
+
+    /// α at `pixel` (film coordinates) for `light`, if the pilot covered it.
+    pub fn get(&self, pixel: UVec2, light: usize) -> Option<f64> {
+        let w = self.window?;
+        let (x, y) = (pixel.x.checked_sub(w.x)?, pixel.y.checked_sub(w.y)?);
+        if x >= w.width || y >= w.height {
+            return None;
+        }
+        let a = *self
+            .alphas
+            .get((y * w.width + x) as usize * self.lights + light)?;
+        a.is_finite().then_some(a as f64)
+    }
+}
+
+/// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative.
+pub fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> {
+    match pooled {
+        Pooled::SecondOrder => {
+            (values[2] > 0.0).then_some(())?;
+            second_order_alpha(values[0] as f64, values[1] as f64)
+        }
+        Pooled::Nodes(_) => {
+            (values[NODES] > 0.0).then_some(())?;
+            let v = &values[..NODES];
+            let best = (0..NODES).min_by(|&a, &b| v[a].total_cmp(&v[b]))?;
+            let step = (clamp[1] - clamp[0]) / (NODES - 1) as f64;
+            let mut alpha = clamp[0] + step * best as f64;
+            if best > 0 && best < NODES - 1 {
+                // The vertex of the parabola through the best node and its neighbours.
+                let (l, c, r) = (v[best - 1] as f64, v[best] as f64, v[best + 1] as f64);
+                let curvature = l - 2.0 * c + r;
+                if curvature > 0.0 && curvature.is_finite() {
+                    alpha += step * (0.5 * (l - r) / curvature).clamp(-1.0, 1.0);
+                }
+            }
+            Some(alpha)
+        }
+    }
+}
 
 /// The allocation: N samples at the α its pixel and light learned from the passes before.
 pub struct LearnedAlpha {
