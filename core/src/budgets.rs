@@ -17,8 +17,9 @@
 //! Each pixel p then gets a target total N_p = f_p (D̄ + P̄) (f_p its share, of mean one; D̄ the
 //! average samples so far), hence R_p = N_p − D_p samples still to come (at least [`FLOOR`] P̄),
 //! scaled so that they average P̄; the pass gives it n_p = R_p n̄ / P̄ of them and plans P_p =
-//! R_p, both even and n_p ≥ 2 (each half-image holds half of every pass), P_p ≥ n_p + 2 before
-//! the last pass. The combination rule holds per pixel: u_k = (T − M_k)/P_k with the pixel's own
+//! R_p, both even (each half-image holds half of every pass), n_p rounded with its error carried
+//! to the next pixel so that the pass costs what the uniform pass would (n_p may be 0 before the
+//! last pass, at least 2 in it), P_p ≥ n_p + 2 before the last pass. The combination rule holds per pixel: u_k = (T − M_k)/P_k with the pixel's own
 //! M_k and P_k, both fixed before the pass, and the last pass (P_p = n_p) brings its weights to
 //! one, so each pixel's image is unbiased.
 
@@ -94,16 +95,21 @@ pub fn budget(
     for r in &mut remaining {
         *r *= planned / mean_remaining;
     }
+    // Rounded to even numbers with the rounding error carried to the next pixel (in the sums'
+    // fixed order), so that the pass's total is the uniform pass's: a pixel may get no sample
+    // in a pass before the last (its weights wait), and gets at least 2 in the last.
+    let mut carry = 0.0;
     let passes = remaining
         .iter()
         .zip(&done)
         .map(|(&r, &d)| {
-            let (n, p) = if last {
-                let n = even(r);
-                (n, u64::from(n))
+            let wanted = if last { r } else { r * now / planned } + carry;
+            let n = even(wanted, if last { 2 } else { 0 });
+            carry = wanted - f64::from(n);
+            let p = if last {
+                u64::from(n)
             } else {
-                let n = even(r * now / planned);
-                (n, (even(r) as u64).max(u64::from(n) + 2))
+                u64::from(even(r, 2)).max(u64::from(n) + 2)
             };
             PlannedPass {
                 end: d + n,
@@ -117,10 +123,10 @@ pub fn budget(
     }
 }
 
-/// `x` rounded to the nearest even number of samples, at least 2.
-fn even(x: f64) -> u32 {
+/// `x` rounded to the nearest even number of samples, at least `least`.
+fn even(x: f64, least: u32) -> u32 {
     let n = 2.0 * (x / 2.0).round();
-    n.clamp(2.0, f64::from(u32::MAX - 1)) as u32
+    n.clamp(f64::from(least), f64::from(u32::MAX - 1)) as u32
 }
 
 /// Each pixel's share of a pass (in the sums' order, mean one): √v_p pooled, dilated, floored and
@@ -323,6 +329,13 @@ mod tests {
         }
         let ratio = noisy_samples / quiet_samples;
         assert!((3.0..20.0).contains(&ratio), "noisy/quiet samples {ratio}");
+        // The total is the uniform render's, within a sample.
+        let total: u64 = sums.samples.iter().map(|&n| u64::from(n)).sum();
+        let uniform = 32 * sums.samples.len() as u64;
+        assert!(
+            total.abs_diff(uniform) <= 2,
+            "{total} samples, uniform {uniform}"
+        );
     }
 
     /// Over replicate renders, the mean of the images' noisy half is the samples' mean within
