@@ -14,12 +14,12 @@ cd "$(dirname "$0")/.."
 # One group per line: cargo's target selection, then `--`, then test-name filters (none: the
 # whole binary, all of whose tests take the seed).
 groups=(
-    "--lib -- chi2:: testing:: filter::tests:: passes::tests::planned_weights envmap::tests::compensated study::summary::tests::nominal example_methods_converge_to_balance"
+    "--lib -- chi2:: testing:: filter::tests:: passes::tests::planned_weights budgets::tests:: envmap::tests::compensated study::summary::tests::nominal example_methods_converge_to_balance"
     "--test sampling"
     "--test bsdfs"
     "--test emitters -- emitters:: envmap_bilinear::"
     "--test integration -- robustness::plugin_library surfaces::"
-    "--test integration -- integrators::same_mean_ integrators::every_integrator_gives_the_closed_form_at_one_point path::a_furnace_gives path::every_weighting_gives passes::a_stop_after_seeing"
+    "--test integration -- integrators::same_mean_ learning:: integrators::every_integrator_gives_the_closed_form_at_one_point path::a_furnace_gives path::every_weighting_gives passes::a_stop_after_seeing"
 )
 failed=()
 for group in "${groups[@]}"; do

@@ -7,6 +7,7 @@
 use crate::interrupt;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lumis::budgets::Budgets;
 use lumis::error_estimate::Metric;
 use lumis::passes::{self, Settings, Stop, Stopping};
 use lumis::progressive::{Control, Ending, RenderState, Scope};
@@ -103,6 +104,13 @@ pub struct RenderArgs {
     /// black 1/100, red 1, white 100 times the image's).
     #[arg(long)]
     heat_map: bool,
+    /// How a render in passes spreads each pass's samples over the pixels: `uniform` (the same
+    /// for all) [default], or `per-pixel`: in proportion to the square root of each pixel's
+    /// variance per sample (relative for --metric relmse) measured on the passes before, with a
+    /// floor and a dilation; still unbiased (docs/integrators.md, "Per-pixel budgets"). Needs
+    /// passes of even sizes; not with --shard or --resume.
+    #[arg(long, value_name = "B")]
+    budgets: Option<String>,
 }
 
 impl RenderArgs {
@@ -138,6 +146,33 @@ fn settings(args: &RenderArgs, spp: u32) -> Result<Option<Settings>> {
         );
     }
     Ok(settings)
+}
+
+/// The budgets asked for, checked against the render: per-pixel budgets read the half-images of
+/// the passes before (so every pass has an even number of samples), and decide each pass from
+/// the whole image's sums (so not per shard, nor from the sums of a pass cut short).
+fn budgets(args: &RenderArgs, settings: Option<&Settings>) -> Result<Budgets> {
+    let Some(name) = args.budgets.as_deref() else {
+        return Ok(Budgets::Uniform);
+    };
+    let budgets = Budgets::parse(name).map_err(anyhow::Error::msg)?;
+    if budgets == Budgets::Uniform {
+        return Ok(budgets);
+    }
+    let Some(settings) = settings else {
+        bail!(
+            "--budgets {name} applies to a render in passes (--target-error, --time, --passes, --replay)"
+        );
+    };
+    if !settings.estimates_error() {
+        bail!(
+            "--budgets {name} needs passes of even sizes (it reads the half-images of the passes before): give --passes K with an even --spp of at least 2K"
+        );
+    }
+    if args.shard.is_some() || args.resume.is_some() {
+        bail!("--budgets {name} cannot be combined with --shard or --resume");
+    }
+    Ok(budgets)
 }
 
 /// The passes recorded in the EXR at `path`.
@@ -302,6 +337,7 @@ pub fn render(args: RenderArgs, threads: usize) -> Result<()> {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
     let settings = settings(&args, loaded.scene.spp)?;
+    let budgets = budgets(&args, settings.as_ref())?;
     if let Some(exr) = &args.replay {
         check_replay(exr, loaded.scene.seed, &loaded.description.integrator)?;
     }
@@ -316,7 +352,8 @@ pub fn render(args: RenderArgs, threads: usize) -> Result<()> {
             render_shard_pass(&args, overrides, loaded, &settings, shard, threads)
         }
         (None, Some(settings)) => {
-            render_in_passes(&args, &overrides, loaded, &settings, threads, load_time)
+            let scope = Scope::whole(threads).with_budgets(budgets);
+            render_in_passes(&args, &overrides, loaded, &settings, scope, load_time)
         }
         (None, None) => render_plain(&args, loaded, threads, load_time),
     }
@@ -581,7 +618,7 @@ fn render_in_passes(
     overrides: &[String],
     mut loaded: lumis::scene::load::LoadedScene,
     settings: &Settings,
-    threads: usize,
+    scope: Scope,
     load_time: std::time::Duration,
 ) -> Result<()> {
     let heat_map = args.heat_map.then_some(settings.metric);
@@ -675,7 +712,7 @@ fn render_in_passes(
         loaded.integrator.as_mut(),
         settings,
         &mut state,
-        Scope::whole(threads),
+        scope,
         &cancel,
         &|n| bar.inc(n),
         &mut on_pass,
@@ -913,6 +950,7 @@ fn render_shard_pass(
             threads,
             shard,
             max_passes: Some(1),
+            budgets: Budgets::Uniform,
         },
         &cancel,
         &|_| {},

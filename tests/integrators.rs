@@ -7,9 +7,13 @@
 
 use crate::common;
 use common::{integrators, lumis, scene_file};
+use lumis::budgets::Budgets;
 use lumis::chi2::{FAMILY_FALSE_ALARM, sidak, test_seed, z_limit};
 use lumis::integrators::{alpha, aovs, balance, bsdf, light, mis, variance_aware};
+use lumis::passes::{Settings, Stopping};
+use lumis::progressive::{Control, Ending, RenderState, Scope};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 
 fn repo_path(relative: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
@@ -68,6 +72,24 @@ struct PixelMeans {
 /// Loads the scene once (the seed is read only when rendering, so this equals one load per
 /// seed, without parsing and building the env map's distribution for every run).
 fn pixel_means(path: &Path, overrides: &[String], seeds: std::ops::Range<u64>) -> PixelMeans {
+    pixel_means_rendered(path, overrides, seeds, None)
+}
+
+/// A render of the scene's samples in `passes` equal passes whose samples are spread over the
+/// pixels by `budgets` (docs/integrators.md, "Passes").
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct InPasses {
+    pub passes: u32,
+    pub budgets: Budgets,
+}
+
+/// [`pixel_means`] of plain renders (`None`) or of renders in passes.
+fn pixel_means_rendered(
+    path: &Path,
+    overrides: &[String],
+    seeds: std::ops::Range<u64>,
+    in_passes: Option<InPasses>,
+) -> PixelMeans {
     let runs = seeds.end - seeds.start;
     let mut sum: Vec<f64> = Vec::new();
     let mut sum_sq: Vec<f64> = Vec::new();
@@ -78,9 +100,37 @@ fn pixel_means(path: &Path, overrides: &[String], seeds: std::ops::Range<u64>) -
     for seed in seeds {
         loaded.scene.seed = seed;
         loaded.integrator.preprocess(&loaded.scene);
-        let film = lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
-            .expect("render")
-            .0;
+        let film = match in_passes {
+            None => {
+                lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 2, &|_| {})
+                    .expect("render")
+                    .0
+            }
+            Some(InPasses { passes, budgets }) => {
+                let spp = loaded.scene.spp;
+                let settings = Settings {
+                    stopping: Stopping::Samples { spp, passes },
+                    ..Settings::samples(spp)
+                };
+                let integrator = loaded.integrator.as_mut();
+                let mut state = RenderState::new(&loaded.scene, integrator, &settings);
+                let outcome = lumis::progressive::run(
+                    &loaded.scene,
+                    integrator,
+                    &settings,
+                    &mut state,
+                    Scope::whole(2).with_budgets(budgets),
+                    &AtomicBool::new(false),
+                    &|_| {},
+                    &mut |_| Control::Continue,
+                )
+                .expect("render");
+                assert_eq!(outcome.ending, Ending::Complete);
+                state
+                    .sums
+                    .resolve(&loaded.scene, loaded.integrator.as_ref())
+            }
+        };
         assert!(
             film.color.iter().all(|c| c.is_finite()),
             "{}: {overrides:?} seed {seed} is not finite",
@@ -250,7 +300,7 @@ fn weights(reference: &PixelMeans, tested: &PixelMeans, tested_runs: u64) -> Vec
 
 /// Scenes of the same-mean test: diffuse, glossy and mirror surfaces under area, delta, sphere
 /// and environment lights (nearest and bilinear maps).
-fn same_mean_scene(index: usize) -> (String, Option<tempfile::TempDir>, PathBuf) {
+pub(crate) fn same_mean_scene(index: usize) -> (String, Option<tempfile::TempDir>, PathBuf) {
     match index {
         0 => (
             "diffuse + area lights".into(),
@@ -341,6 +391,25 @@ pub(crate) fn same_mean(
     configurations: &[(String, Vec<String>)],
     detectable: f64,
 ) {
+    let plain: Vec<_> = configurations
+        .iter()
+        .map(|(n, o)| (n.clone(), o.clone(), None))
+        .collect();
+    same_mean_rendered(name, path, spp, balance_type, &plain, detectable);
+}
+
+/// [`same_mean`] of configurations rendered plainly (`None`) or in passes, against plain
+/// renders of the reference. A render in passes whose budgets are per pixel, or whose α is
+/// pooled over pixels, couples its pixels: it is compared as the coupled configurations are
+/// (run sums, [`RUNS_COUPLED`] runs), its power required as every other's.
+pub(crate) fn same_mean_rendered(
+    name: &str,
+    path: &Path,
+    spp: u32,
+    balance_type: &[String],
+    configurations: &[(String, Vec<String>, Option<InPasses>)],
+    detectable: f64,
+) {
     let path = path.to_path_buf();
     let base = vec![
         "film.width=24".to_string(),
@@ -375,18 +444,21 @@ pub(crate) fn same_mean(
         configurations.len() * blocks.len(),
     );
     let mut failures = Vec::new();
-    for (i, (integrator, extra)) in configurations.iter().enumerate() {
+    for (i, (integrator, extra, in_passes)) in configurations.iter().enumerate() {
         // `variance_aware`'s factors, pooled over blocks of 16² pixels from a pilot of 2 samples
         // per technique and pixel, switch a whole block to one technique in about 6 % of its
         // renders on the Veach layout: its pixels are correlated within a render, and the
         // per-pixel variances would understate the error of δ̂ (docs/testing.md).
-        let coupled = integrator == variance_aware::NAME;
+        let pooled = extra.iter().any(|o| o.contains("pooled_alpha"));
+        let budgets = in_passes.is_some_and(|p| p.budgets != Budgets::Uniform);
+        let coupled = integrator == variance_aware::NAME || budgets || pooled;
         let runs = if coupled { RUNS_COUPLED } else { RUNS };
         let seeds = first + 1000 * (i as u64 + 1);
-        let pilot = pixel_means(&path, &with(extra), seeds..seeds + PILOT_RUNS);
+        let means = |seeds| pixel_means_rendered(&path, &with(extra), seeds, *in_passes);
+        let pilot = means(seeds..seeds + PILOT_RUNS);
         let weights = weights(&reference_pilot, &pilot, runs);
         let seeds = seeds + 100;
-        let tested = pixel_means(&path, &with(extra), seeds..seeds + runs);
+        let tested = means(seeds..seeds + runs);
         // Pixels constant over balance's 48 runs: directly seen emission (the environment, an
         // emitter's face), the same whatever the integrator, or a deterministic delta light's,
         // to which another method may add light balance's runs happened never to find (a rare
@@ -444,7 +516,7 @@ pub(crate) fn same_mean(
         // rare renders too (one in ~4000 on the Veach layout adds up to 3 times the image):
         // its power is printed, not required, since 64 runs seldom see them (docs/testing.md).
         let rare_events = integrator == bsdf::NAME;
-        let power_required = !rare_events && !coupled;
+        let power_required = !rare_events && (!coupled || in_passes.is_some());
         failures.extend((detected > detectable && power_required).then(|| {
             format!(
                 "{name}: {integrator}: the test detects only biases above {:.2} %",

@@ -16,6 +16,7 @@ mod import;
 mod import_hostile;
 mod import_materials;
 mod integrators;
+mod learning;
 mod module_layers;
 mod one_point;
 mod passes;

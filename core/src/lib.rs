@@ -2,6 +2,7 @@
 //! and integrators live in the plugin crates and register themselves with [`registry`].
 
 pub mod bsdf;
+pub mod budgets;
 pub mod camera;
 pub mod chi2;
 pub mod dylib;

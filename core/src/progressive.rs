@@ -8,10 +8,11 @@
 //! given without one; saved by shards after each pass, it merges into the one-process state
 //! (docs/distributed.md).
 
+use crate::budgets::{self, Budgets};
 use crate::error_estimate;
 use crate::integrator::Integrator;
 pub use crate::passes::PassContext;
-use crate::passes::{self, Budget, Decision, History, PassRecord, PlannedPass, Settings, Stop};
+use crate::passes::{self, Decision, History, PassRecord, PlannedPass, Settings, Stop};
 use crate::render::{self, FilmSums, RenderStats, Shard};
 use crate::scene::Scene;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -82,6 +83,8 @@ pub struct Scope {
     pub shard: Shard,
     /// At most this many passes.
     pub max_passes: Option<usize>,
+    /// How each pass's samples are spread over the pixels ([`crate::budgets`]).
+    pub budgets: Budgets,
 }
 
 impl Scope {
@@ -91,7 +94,13 @@ impl Scope {
             threads,
             shard: Shard::WHOLE,
             max_passes: None,
+            budgets: Budgets::Uniform,
         }
+    }
+
+    /// This scope with each pass's samples spread over the pixels by `budgets`.
+    pub fn with_budgets(self, budgets: Budgets) -> Self {
+        Scope { budgets, ..self }
     }
 }
 
@@ -142,7 +151,13 @@ pub fn run(
         if state.history.passes.is_empty() {
             state.history.mass = pass.planned as f64;
         }
-        let budget = Budget::uniform(state.history.mass, pass);
+        let budget = budgets::budget(
+            scope.budgets,
+            settings.metric,
+            &state.history,
+            &state.sums,
+            pass,
+        );
         integrator.begin_pass(
             scene,
             &PassContext {

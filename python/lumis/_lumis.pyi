@@ -200,6 +200,7 @@ class Scene:
         max_spp: Optional[int] = None,
         max_time: Optional[float] = None,
         on_pass: Optional[Callable[[PassReport], Optional[bool]]] = None,
+        budgets: Optional[str] = None,
         **params: Any,
     ) -> RenderResult:
         """Renders the scene and returns its layers as numpy arrays.
@@ -227,6 +228,9 @@ class Scene:
             confidence: of the stated error interval and of a target's stop (default 0.95).
             on_pass: called after each pass with its `PassReport`; returning ``False`` stops the
                 render there (the result is then `partial`), anything else goes on.
+            budgets: ``"uniform"`` (default) or ``"per-pixel"``: how a render in passes spreads
+                each pass's samples over the pixels, as ``lumis render --budgets`` (passes of
+                even sizes).
             **params: integrator parameters, as in the scene's ``integrator`` (``samples=64``,
                 ``aovs=["alpha", "sampling_variance"]``, ``mode="integrated"``); ``None``
                 removes a parameter the scene sets.

@@ -13,6 +13,7 @@ mod convert;
 mod study;
 
 use lumis::embedding::catch_panic;
+use lumis_core::budgets::Budgets;
 use lumis_core::error_estimate::Metric;
 use lumis_core::film::Film;
 use lumis_core::image_io::Metadata;
@@ -266,8 +267,8 @@ impl Scene {
     /// integrator: plugin name (default the scene's; its parameters are kept, as with
     /// `--set integrator.type=NAME`); spp, seed: default the scene's `sampler` values; threads:
     /// default one per core; target_error, time, passes, metric, confidence, max_spp,
-    /// max_time: a render in passes, as `lumis render`'s options of those names; on_pass: called
-    /// after each pass with a PassReport, returns False to stop; **params: integrator
+    /// max_time, budgets: a render in passes, as `lumis render`'s options of those names;
+    /// on_pass: called after each pass with a PassReport, returns False to stop; **params: integrator
     /// parameters (`samples=64`, `aovs=["alpha"]`; None removes one). The GIL is released while
     /// rendering; Ctrl-C stops the render and raises KeyboardInterrupt (the partial image is
     /// discarded). Raises PluginError for an unknown integrator or refused parameters,
@@ -276,7 +277,7 @@ impl Scene {
     #[pyo3(signature = (
         integrator=None, spp=None, seed=None, threads=None, target_error=None, time=None,
         passes=None, metric=None, confidence=None, max_spp=None, max_time=None, on_pass=None,
-        **params
+        budgets=None, **params
     ))]
     #[allow(clippy::too_many_arguments)]
     fn render(
@@ -294,6 +295,7 @@ impl Scene {
         max_spp: Option<u32>,
         max_time: Option<f64>,
         on_pass: Option<Bound<'_, PyAny>>,
+        budgets: Option<String>,
         params: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<RenderResult> {
         guarded(|| {
@@ -324,6 +326,19 @@ impl Scene {
             let settings = request
                 .settings(spp, str::to_string)
                 .map_err(PyValueError::new_err)?;
+            let budgets = budgets
+                .as_deref()
+                .map(Budgets::parse)
+                .transpose()
+                .map_err(PyValueError::new_err)?
+                .unwrap_or_default();
+            if budgets != Budgets::Uniform
+                && !settings.as_ref().is_some_and(Settings::estimates_error)
+            {
+                return Err(PyValueError::new_err(
+                    "budgets=\"per-pixel\" needs a render in passes of even sizes (target_error, time, or passes with an even spp of at least twice the passes)",
+                ));
+            }
             if settings.is_none() && on_pass.is_some() {
                 return Err(PyValueError::new_err(
                     "on_pass is called after each pass of a render in passes (target_error, time or passes)",
@@ -389,7 +404,7 @@ impl Scene {
                         integrator.as_mut(),
                         &settings,
                         &mut state,
-                        Scope::whole(threads.unwrap_or(0)),
+                        Scope::whole(threads.unwrap_or(0)).with_budgets(budgets),
                         cancel,
                         &|_| {},
                         &mut |state| {

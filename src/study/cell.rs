@@ -3,9 +3,13 @@
 //! study reads, and the CPU and wall time; everything the study reports is computed from such
 //! results (and the reference) by [`super::collect`].
 
+use super::config::InPasses;
 use super::plan::{Cell, ScenePlan};
 use anyhow::{Context, Result};
 use lumis_core::film::Film;
+use lumis_core::integrator::Integrator;
+use lumis_core::passes::{Settings, Stopping};
+use lumis_core::progressive::{self, Control, Ending, RenderState, Scope};
 use lumis_core::scene::Scene;
 use lumis_core::scene::load::build_integrator;
 use lumis_integrators::aovs;
@@ -81,12 +85,29 @@ pub fn run_cell(
     let cpu_start = process_cpu_time();
     let wall_start = std::time::Instant::now();
     integrator.preprocess(scene);
-    let (film, stats) =
-        lumis_core::render::render_cancellable(scene, &*integrator, threads, &|_| {}, cancel)
+    let film = match plan.in_passes(cell) {
+        None => {
+            let (film, stats) = lumis_core::render::render_cancellable(
+                scene,
+                &*integrator,
+                threads,
+                &|_| {},
+                cancel,
+            )
             .context("cannot start the render threads")?;
-    if stats.partial() {
-        return Err(Interrupted(out.to_path_buf()).into());
-    }
+            if stats.partial() {
+                return Err(Interrupted(out.to_path_buf()).into());
+            }
+            film
+        }
+        Some(in_passes) => {
+            let (spp, scene_spp) = (in_passes.spp(), scene.spp);
+            scene.spp = spp;
+            let film = render_in_passes(scene, integrator.as_mut(), in_passes, threads, cancel);
+            scene.spp = scene_spp;
+            film?.ok_or_else(|| Interrupted(out.to_path_buf()))?
+        }
+    };
     let wall_time = wall_start.elapsed().as_secs_f64();
     let cpu = process_cpu_time() - cpu_start;
     Ok(CellResult {
@@ -98,6 +119,36 @@ pub fn run_cell(
         cpu_time: if cpu.is_finite() { cpu } else { wall_time },
         wall_time,
     })
+}
+
+/// A render of `scene`'s samples in the passes of `in_passes`; `None` if `cancel` stopped it.
+fn render_in_passes(
+    scene: &Scene,
+    integrator: &mut dyn Integrator,
+    in_passes: InPasses,
+    threads: usize,
+    cancel: &AtomicBool,
+) -> Result<Option<Film>> {
+    let settings = Settings {
+        stopping: Stopping::Samples {
+            spp: scene.spp,
+            passes: in_passes.passes,
+        },
+        ..Settings::samples(scene.spp)
+    };
+    let mut state = RenderState::new(scene, integrator, &settings);
+    let outcome = progressive::run(
+        scene,
+        integrator,
+        &settings,
+        &mut state,
+        Scope::whole(threads).with_budgets(in_passes.budgets),
+        cancel,
+        &|_| {},
+        &mut |_| Control::Continue,
+    )
+    .context("cannot start the render threads")?;
+    Ok((outcome.ending == Ending::Complete).then(|| state.sums.resolve(scene, integrator)))
 }
 
 fn channels(film: &Film) -> Vec<Channel> {

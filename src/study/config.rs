@@ -4,6 +4,7 @@
 //! [`StudyConfig::validate`] before anything is rendered.
 
 use anyhow::{Context, Result, bail};
+use lumis_core::budgets::Budgets;
 use lumis_core::params::ParamKind;
 use lumis_core::registry::{IntegratorPlugin, find};
 use lumis_core::scene::description::PluginSpec;
@@ -14,11 +15,38 @@ use std::path::PathBuf;
 
 /// An integrator of a study: a plugin with parameters, written `NAME[:key=value]...`
 /// (e.g. `alpha:mode=preprocessed:alpha_samples=1024`); the text is its label. The study sets
-/// `samples` (the budget) and `aovs` itself.
+/// `samples` (the budget) and `aovs` itself. Two keys are the study's, not the plugin's:
+/// `passes=K` renders in K passes of 2 camera samples each ([`InPasses`]), and with it
+/// `budgets=per-pixel` spreads each pass's samples over the pixels (docs/integrators.md).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Choice {
     pub label: String,
     pub spec: PluginSpec,
+    pub in_passes: Option<InPasses>,
+}
+
+/// A configuration rendered in passes: `passes` passes of [`CAMERA_SAMPLES_PER_PASS`] camera
+/// samples, spread over the pixels by `budgets`. Its budget B is total work, camera samples ×
+/// N: N = B / (2 · passes) samples per light (at least 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InPasses {
+    pub passes: u32,
+    pub budgets: Budgets,
+}
+
+/// Camera samples per pixel of each pass of a configuration rendered in passes: the fewest
+/// that keep the half-images per-pixel budgets read.
+pub const CAMERA_SAMPLES_PER_PASS: u32 = 2;
+
+/// The study's keys of a choice.
+pub const PASSES: &str = "passes";
+pub const BUDGETS: &str = "budgets";
+
+impl InPasses {
+    /// Camera samples per pixel of the render.
+    pub fn spp(&self) -> u32 {
+        self.passes * CAMERA_SAMPLES_PER_PASS
+    }
 }
 
 impl Choice {
@@ -45,12 +73,35 @@ impl Choice {
                 bail!("`{text}`: `{reserved}` is set by the study, not per integrator");
             }
         }
+        let budgets = match params.remove(BUDGETS) {
+            None => Budgets::Uniform,
+            Some(Value::String(name)) => {
+                Budgets::parse(&name).map_err(|e| anyhow::anyhow!("`{text}`: {e}"))?
+            }
+            Some(other) => bail!("`{text}`: `{BUDGETS}` is uniform or per-pixel, not {other:?}"),
+        };
+        let in_passes = match params.remove(PASSES) {
+            None if budgets != Budgets::Uniform => {
+                bail!("`{text}`: `{BUDGETS}` applies to a render in passes: add `{PASSES}=K`")
+            }
+            None => None,
+            Some(Value::Number(n)) if n.into_f64() >= 2.0 && n.into_f64() <= 64.0 => {
+                Some(InPasses {
+                    passes: n.into_f64() as u32,
+                    budgets,
+                })
+            }
+            Some(other) => {
+                bail!("`{text}`: `{PASSES}` is a number of passes from 2 to 64, not {other:?}")
+            }
+        };
         Ok(Self {
             label: text.trim().to_string(),
             spec: PluginSpec {
                 kind: kind.to_string(),
                 params,
             },
+            in_passes,
         })
     }
 
@@ -65,6 +116,7 @@ impl Choice {
                     .map(|(k, v)| (k.to_string(), v.clone()))
                     .collect(),
             },
+            in_passes: None,
         }
     }
 
@@ -93,7 +145,8 @@ impl Choice {
             )
     }
 
-    /// The plugin's spec for `samples` per light, with the AOV layers the study reads among
+    /// The plugin's spec for a budget of `samples` per light (per camera sample; in passes, over
+    /// the pixel's camera samples: [`InPasses`]), with the AOV layers the study reads among
     /// those the plugin offers.
     pub fn spec_at(&self, samples: u32) -> Result<PluginSpec> {
         let plugin = find::<IntegratorPlugin>(&self.spec.kind)
@@ -106,7 +159,11 @@ impl Choice {
             );
         }
         let mut spec = self.spec.clone();
-        mis::set_samples(&mut spec, samples);
+        let per_light = match self.in_passes {
+            Some(p) => (samples / p.spp()).max(1),
+            None => samples,
+        };
+        mis::set_samples(&mut spec, per_light);
         let offered = plugin.params.iter().find_map(|p| match p.kind {
             ParamKind::List { options } if p.name == mis::AOVS => Some(options),
             _ => None,

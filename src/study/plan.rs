@@ -9,7 +9,9 @@
 //! k + 1, so slow drifts of the machine's speed hit every configuration alike, and a study
 //! interrupted after k runs has k complete runs of everything.
 
-use super::config::{Choice, PAPER_BUDGET, PAPER_PREPROCESSED_PILOT, ReferenceSource, StudyConfig};
+use super::config::{
+    Choice, InPasses, PAPER_BUDGET, PAPER_PREPROCESSED_PILOT, ReferenceSource, StudyConfig,
+};
 use anyhow::Result;
 use lumis_core::scene::description::PluginSpec;
 use lumis_integrators::{alpha, balance};
@@ -47,9 +49,10 @@ pub struct Configuration {
 impl Configuration {
     fn key(&self) -> String {
         format!(
-            "{}{}",
+            "{}{}{:?}",
             self.spec.kind,
-            ron::to_string(&self.spec.params).unwrap_or_default()
+            ron::to_string(&self.spec.params).unwrap_or_default(),
+            self.choice.in_passes
         )
     }
 }
@@ -346,6 +349,14 @@ impl ScenePlan {
     }
 
     /// The plugin spec a cell renders.
+    /// How `cell` is rendered in passes, if it is.
+    pub fn in_passes(&self, cell: &Cell) -> Option<InPasses> {
+        match cell.role {
+            Role::Run { configuration, .. } => self.configurations[configuration].choice.in_passes,
+            Role::Shard(_) => None,
+        }
+    }
+
     pub fn spec(&self, cell: &Cell) -> &PluginSpec {
         match cell.role {
             Role::Run { configuration, .. } => &self.configurations[configuration].spec,

@@ -10,6 +10,7 @@
 use crate::phase::LightEstimate;
 use crate::sampling::LightSampling;
 use crate::weighting::Weighting;
+use lumis_core::passes::PassContext;
 use lumis_core::scene::Scene;
 
 /// How a light's samples are allocated to the techniques, and how phases combine, for any
@@ -43,6 +44,26 @@ pub trait Allocation: Send + Sync {
     /// statistics, filtered over neighbouring pixels, `estimate` then reads per pixel and light
     /// through `sampling.pixel()`).
     fn preprocess(&mut self, _scene: &Scene) {}
+
+    /// How many f64 sums per pixel [`observe`](Self::observe) adds (statistics learned from
+    /// the render's own passes); 0, the default, when the allocation learns nothing.
+    fn pixel_sums(&self, _scene: &Scene) -> usize {
+        0
+    }
+
+    /// Called before each pass of a render in passes with the passes before it: an
+    /// allocation that learns reads its statistics there (`pass.sums`, from `offset` in each
+    /// pixel's integrator sums), and decides what the pass uses from them only.
+    fn begin_pass(&mut self, _scene: &Scene, _pass: &PassContext<'_>, _offset: usize) {}
+
+    /// Whether [`observe`](Self::observe) adds anything in the current pass.
+    fn learning(&self) -> bool {
+        false
+    }
+
+    /// Adds the statistics of the phase `sampling` drew last to `sums` (this allocation's
+    /// [`pixel_sums`](Self::pixel_sums) of the pixel): only adds, allocates nothing.
+    fn observe(&self, _sampling: &LightSampling, _sums: &mut [f64]) {}
 }
 
 /// A MIS method as [`crate::mis::MisIntegrator`] runs it: the estimate of each non-delta light
@@ -64,6 +85,26 @@ pub trait Method: Send + Sync {
 
     /// Work once per scene before rendering.
     fn preprocess(&mut self, _scene: &Scene) {}
+
+    /// How many f64 sums per pixel [`observe`](Self::observe) adds (statistics learned from
+    /// the render's own passes); 0, the default, when the method learns nothing.
+    fn pixel_sums(&self, _scene: &Scene) -> usize {
+        0
+    }
+
+    /// Called before each pass of a render in passes with the passes before it: a
+    /// method that learns reads its statistics there (`pass.sums`, from `offset` in each
+    /// pixel's integrator sums), and decides what the pass uses from them only.
+    fn begin_pass(&mut self, _scene: &Scene, _pass: &PassContext<'_>, _offset: usize) {}
+
+    /// Whether [`observe`](Self::observe) adds anything in the current pass.
+    fn learning(&self) -> bool {
+        false
+    }
+
+    /// Adds the statistics of the phase `sampling` drew last to `sums` (this method's
+    /// [`pixel_sums`](Self::pixel_sums) of the pixel): only adds, allocates nothing.
+    fn observe(&self, _sampling: &LightSampling, _sums: &mut [f64]) {}
 }
 
 /// An allocation with the weighting of all its phases: the method of most plugins (e.g.
@@ -88,6 +129,24 @@ impl<A: Allocation, W: Weighting> Method for Weighted<A, W> {
     fn preprocess(&mut self, scene: &Scene) {
         self.0.preprocess(scene);
         self.1.preprocess(scene);
+    }
+
+    fn pixel_sums(&self, scene: &Scene) -> usize {
+        self.0.pixel_sums(scene)
+    }
+
+    fn begin_pass(&mut self, scene: &Scene, pass: &PassContext<'_>, offset: usize) {
+        self.0.begin_pass(scene, pass, offset);
+    }
+
+    #[inline]
+    fn learning(&self) -> bool {
+        self.0.learning()
+    }
+
+    #[inline]
+    fn observe(&self, sampling: &LightSampling, sums: &mut [f64]) {
+        self.0.observe(sampling, sums);
     }
 }
 

@@ -15,6 +15,12 @@
 //! - `alpha_samples` (integer, default 0 = N/2 integrated, 4096 preprocessed): M.
 //! - `clamp` (interval, default (0.025, 0.975), within [0, 1]): bounds of α̂.
 //! - `fixed` (float, default 0.5, in [0, 1]): α in "fixed" mode.
+//! - `statistics` (choice, default "pilot"): where α̂'s sums come from: "pilot" — the samples
+//!   at α = ½ of `mode`; "passes" — the pixel's earlier passes of a render in passes
+//!   (docs/integrators.md, "Learned α"): Î₁, Î₂ summed over every earlier sample, each term
+//!   reweighted from the split it was drawn at to α = ½; every sample of a pass at the α̂ its
+//!   pixel and light learned before it; the first pass (and a one-pass render) at α = ½. `mode`,
+//!   `alpha_samples` and `fixed` do not apply.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 //!
 //! Counts: n_B = ⌊α·n + ½⌋ (at least one sample per technique when 0 < α < 1), n_L = n − n_B; the
@@ -26,9 +32,11 @@
 
 use crate::allocation::{Allocation, Weighted};
 use crate::alpha_family::{
-    self, ALPHA_SAMPLES_SPEC, CLAMP_SPEC, TwoPhases, mode_named, read_clamp,
+    self, ALPHA_SAMPLES_SPEC, CLAMP_SPEC, STATISTICS_SPEC, TwoPhases, mode_named, read_clamp,
+    read_learns,
 };
 use crate::fixed_alpha::FixedAlpha;
+use crate::learned::{LearnedAlpha, Pooled};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::phase::LightEstimate;
 use crate::sampling::LightSampling;
@@ -75,6 +83,7 @@ static PARAMS: &[ParamSpec] = &[
         unit: "",
         description: "α in fixed mode",
     },
+    STATISTICS_SPEC,
     AOVS_SPEC,
 ];
 
@@ -140,6 +149,11 @@ pub fn read_allocation(params: &mut Params, samples: u32) -> Result<SecondOrderA
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     let samples = read_samples(params)?;
     let balance = PerSample(Balance);
+    if read_learns(params)? {
+        let clamp = read_clamp(params)?;
+        let allocation = LearnedAlpha::new(samples, Pooled::SecondOrder, clamp, 0);
+        return MisIntegrator::boxed(params, Weighted(allocation, balance));
+    }
     let mode = params.choice(MODE)?;
     if mode == FIXED {
         let alpha = params.float(FIXED_ALPHA)? as f64;

@@ -34,6 +34,28 @@ pub const STRATIFIED: &str = "stratified";
 /// Parameter: M, the samples per light per pixel of a pilot pass over the image.
 pub const PILOT_SAMPLES: &str = "pilot_samples";
 
+/// Parameter: where α's statistics come from, [`PILOT`] (samples at α = ½ per `mode`, or a
+/// pilot pass) or [`PASSES`] (the render's earlier passes, [`crate::learned`]).
+pub const STATISTICS: &str = "statistics";
+pub const PILOT: &str = "pilot";
+pub const PASSES: &str = "passes";
+
+/// `statistics`, read by [`read_learns`].
+pub const STATISTICS_SPEC: ParamSpec = ParamSpec {
+    name: STATISTICS,
+    kind: ParamKind::Choice {
+        options: &[PILOT, PASSES],
+        default: PILOT,
+    },
+    unit: "",
+    description: "pilot: α from samples at α = ½ drawn for it; passes: from the render's earlier passes (a render in passes; the first pass, and a one-pass render, at α = ½)",
+};
+
+/// Reads `statistics`: whether α is learned from the render's earlier passes.
+pub fn read_learns(params: &mut Params) -> Result<bool, PluginError> {
+    Ok(params.choice(STATISTICS)? == PASSES)
+}
+
 /// `mode` of `exact_alpha` and `cost_alpha`.
 pub const MODE_SPEC: ParamSpec = ParamSpec {
     name: MODE,

@@ -82,7 +82,7 @@ struct SampleCounts {
 }
 
 /// f64 sums per light in a pixel's sums.
-const PER_LIGHT: usize = size_of::<LightSums>() / size_of::<f64>();
+pub const PER_LIGHT: usize = size_of::<LightSums>() / size_of::<f64>();
 /// f64 sums of the sample counts, after the lights'.
 const COUNTS: usize = size_of::<SampleCounts>() / size_of::<f64>();
 

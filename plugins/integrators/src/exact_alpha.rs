@@ -20,6 +20,12 @@
 //!   of the mixture (one-sample) estimator, as the paper; "stratified" — m̂(α) − α μ̂_B(α)² −
 //!   (1 − α) μ̂_L(α)², the variance of the stratified estimator the integrators use (exactly
 //!   n_B = ⌊αN + ½⌋ BSDF samples), μ̂_t the mean of technique t's samples (ours).
+//! - `statistics` (choice, default "pilot"): where α's statistics come from: "pilot" — the M
+//!   samples at α = ½ of `mode`; "passes" — the pixel's earlier passes of a render in passes
+//!   (docs/integrators.md, "Learned α"): every sample of a pass at the α its pixel and light
+//!   learned before it, the objective kept at 17 evenly spaced α of the clamp interval and
+//!   minimised through the best one's parabola; the first pass (and a one-pass render) at α = ½.
+//!   `mode` and `alpha_samples` do not apply.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 //!
 //! α is ½ (clamped) when the pilot says nothing about it: no sample saw the light, or p_B = p_L
@@ -28,9 +34,10 @@
 
 use crate::allocation::Weighted;
 use crate::alpha_family::{
-    self, ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, TwoPhases,
-    VARIANCE_SPEC, read_clamp, read_mode, read_stratified,
+    self, ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, STATISTICS_SPEC,
+    TwoPhases, VARIANCE_SPEC, read_clamp, read_learns, read_mode, read_stratified,
 };
+use crate::learned::{LearnedAlpha, Pooled};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
 use crate::weighting::{Balance, PerSample};
@@ -59,6 +66,7 @@ static PARAMS: &[ParamSpec] = &[
     ALPHA_SAMPLES_SPEC,
     CLAMP_SPEC,
     VARIANCE_SPEC,
+    STATISTICS_SPEC,
     AOVS_SPEC,
 ];
 
@@ -96,6 +104,16 @@ pub fn read_allocation(
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     let samples = read_samples(params)?;
+    if read_learns(params)? {
+        let clamp = read_clamp(params)?;
+        let objective = if read_stratified(params)? {
+            Objective::Stratified
+        } else {
+            Objective::Mixture
+        };
+        let allocation = LearnedAlpha::new(samples, Pooled::Nodes(objective), clamp, 0);
+        return MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)));
+    }
     let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }

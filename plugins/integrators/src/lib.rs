@@ -48,6 +48,7 @@ pub mod aovs;
 mod batch;
 pub mod estimator;
 pub mod fixed_alpha;
+pub mod learned;
 pub mod mis;
 pub mod moments;
 pub mod one_point;

@@ -16,6 +16,7 @@ use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::passes::PassContext;
 use lumis_core::registry::IntegratorPlugin;
 use lumis_core::scene::Scene;
 use lumis_core::scene::description::PluginSpec;
@@ -92,11 +93,16 @@ impl<M: Method> Integrator for MisIntegrator<M> {
     }
 
     fn pixel_sums(&self, scene: &Scene) -> usize {
-        self.aovs.pixel_sums(scene)
+        self.aovs.pixel_sums(scene) + self.method.pixel_sums(scene)
     }
 
     fn preprocess(&mut self, scene: &Scene) {
         self.method.preprocess(scene);
+    }
+
+    fn begin_pass(&mut self, scene: &Scene, pass: &PassContext<'_>) {
+        let offset = self.aovs.pixel_sums(scene);
+        self.method.begin_pass(scene, pass, offset);
     }
 
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
@@ -107,6 +113,9 @@ impl<M: Method> Integrator for MisIntegrator<M> {
         };
         let mut radiance = emitted(scene, hit, ray.direction);
         let sp = ShadingPoint::new(scene, *hit, -ray.direction);
+        // The method's statistics follow the AOVs' sums.
+        let learning = self.method.learning();
+        let (aov_sums, learned_sums) = sums.split_at_mut(self.aovs.pixel_sums(scene));
         PhaseBuffers::with_thread_local(|buffers| {
             for (light, emitter) in scene.emitters.iter().enumerate() {
                 if emitter.is_delta() {
@@ -128,8 +137,11 @@ impl<M: Method> Integrator for MisIntegrator<M> {
                 }
                 let estimate = self.method.estimate(&mut sampling);
                 radiance += estimate.value;
+                if learning {
+                    self.method.observe(&sampling, learned_sums);
+                }
                 if self.aovs.any() {
-                    self.aovs.add(sums, light, &estimate, &tally);
+                    self.aovs.add(aov_sums, light, &estimate, &tally);
                 }
             }
         });
@@ -137,8 +149,9 @@ impl<M: Method> Integrator for MisIntegrator<M> {
     }
 
     /// Each light's phases for the packet's samples drawn together
-    /// ([`Method::estimate_together`]), when there are several samples and no AOV asks for
-    /// statistics (their sums would be added in another order); one by one otherwise.
+    /// ([`Method::estimate_together`]), when there are several samples and neither an AOV nor
+    /// the method's learning asks for statistics (their sums would be added in another order);
+    /// one by one otherwise.
     fn shade_together(
         &self,
         scene: &Scene,
@@ -148,7 +161,11 @@ impl<M: Method> Integrator for MisIntegrator<M> {
     ) {
         // A packet of one (one sample a pixel) has nothing to share, and the packet's arrays
         // below would cost it more than its own batches do.
-        if self.aovs.any() || samples.len() == 1 || samples.len() > PACKET_SIZE {
+        if self.aovs.any()
+            || self.method.learning()
+            || samples.len() == 1
+            || samples.len() > PACKET_SIZE
+        {
             return shade_one_by_one(self, scene, samples, sums, radiance);
         }
         assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
@@ -207,7 +224,8 @@ impl<M: Method> Integrator for MisIntegrator<M> {
     }
 
     fn resolve(&self, scene: &Scene, sums: &[f64], _samples: u32, aovs: &mut [f32]) {
-        self.aovs.resolve(scene, sums, aovs);
+        self.aovs
+            .resolve(scene, &sums[..self.aovs.pixel_sums(scene)], aovs);
     }
 }
 

@@ -173,6 +173,21 @@ impl<'a> PilotSamples<'a> {
         mean_and_square(strata, self.counts())
     }
 
+    /// The paper's Î₁ and Î₂ ([`crate::second_order`]), the integrals ∫ f² Δp / p̄² and
+    /// ∫ f² Δp² / p̄³ that samples at α = ½ estimate, estimated from these records at their own
+    /// split: with b = p̄ / p_s and d = Δp / p_s, the means of y² d / b² and y² d² / b³ (at
+    /// β = ½ the paper's terms; a Dirac sample adds 2β y² to both, the paper's 4 (f/p_B)² at ½).
+    pub fn second_order(&self) -> (f64, f64) {
+        let (mut i1, mut i2) = (0.0, 0.0);
+        for (y, r_b, r_l) in self.terms() {
+            let (b, d) = (0.5 * (r_b + r_l), 0.5 * (r_b - r_l));
+            let y2 = y * y;
+            i1 += y2 * d / (b * b);
+            i2 += y2 * d * d / (b * b * b);
+        }
+        (i1 * self.inv_count, i2 * self.inv_count)
+    }
+
     /// m̂, μ̂_B, μ̂_L and the unbiased estimates of μ_B² and μ_L² at `alpha`.
     pub fn sums(&self, alpha: f64) -> PilotSums {
         let mut second_moment = 0.0;
@@ -271,6 +286,25 @@ impl<'a> PilotSamples<'a> {
     pub fn objective(&self, objective: Objective, alpha: f64) -> f64 {
         let value = self.objective_value(objective, alpha);
         if value.is_nan() { f64::INFINITY } else { value }
+    }
+
+    /// Adds the objective at `out.len()` evenly spaced α of `clamp` (its ends included) to
+    /// `out`: what a learning allocation keeps per pixel ([`crate::learned`]). m̂ at every α in
+    /// one pass over the records; the other objectives α by α ([`objective`](Self::objective)).
+    pub fn add_objective_at_nodes(&self, objective: Objective, clamp: [f64; 2], out: &mut [f64]) {
+        let step = (clamp[1] - clamp[0]) / (out.len().max(2) - 1) as f64;
+        if objective != Objective::Mixture {
+            for (k, v) in out.iter_mut().enumerate() {
+                *v += self.objective(objective, clamp[0] + step * k as f64);
+            }
+            return;
+        }
+        for (y, r_b, r_l) in self.terms() {
+            let (y2, delta) = (y * y * self.inv_count, r_b - r_l);
+            for (k, v) in out.iter_mut().enumerate() {
+                *v += y2 / (r_l + (clamp[0] + step * k as f64) * delta);
+            }
+        }
     }
 
     fn objective_value(&self, objective: Objective, alpha: f64) -> f64 {
@@ -393,6 +427,40 @@ mod tests {
         let s = pilot.sums(0.3);
         let mean = 0.3 * s.mean_bsdf + 0.7 * s.mean_light;
         assert!((mean - 0.1).abs() < 1e-4 && (pilot.mean() - 0.1).abs() < 1e-4);
+    }
+
+    /// The objective at the nodes, added in one pass over the records, is the objective at
+    /// each node; a pilot drawn at β = ¼ gives the second-order sums of one at ½.
+    #[test]
+    fn nodes_and_second_order_sums_match_their_definitions() {
+        let records = box_pilot(0.1, 200);
+        let pilot = PilotSamples::from_records(&records, 200, 200);
+        let clamp = [0.025, 0.975];
+        for objective in [Objective::Mixture, Objective::Stratified] {
+            let mut nodes = [1.0; 17];
+            pilot.add_objective_at_nodes(objective, clamp, &mut nodes);
+            for (k, v) in nodes.iter().enumerate() {
+                let expected = 1.0 + pilot.objective(objective, 0.025 + 0.95 * k as f64 / 16.0);
+                assert!(
+                    (v - expected).abs() <= 1e-12 * expected,
+                    "{objective:?} node {k}"
+                );
+            }
+        }
+        // Î₁, Î₂ of the box at ½ (records drawn at ½) and from records drawn at ¼: the BSDF
+        // stratum of the first, a quarter as many, with the light stratum whole.
+        let quarter: Vec<SampleRecord> = records[..200]
+            .iter()
+            .step_by(3)
+            .chain(&records[200..])
+            .copied()
+            .collect();
+        let n_bsdf = records[..200].iter().step_by(3).count() as u32;
+        let at_quarter = PilotSamples::from_records(&quarter, n_bsdf, 200);
+        let (half, other) = (pilot.second_order(), at_quarter.second_order());
+        for (a, b) in [(half.0, other.0), (half.1, other.1)] {
+            assert!((a - b).abs() < 0.02 * a.abs(), "{half:?} vs {other:?}");
+        }
     }
 
     #[test]

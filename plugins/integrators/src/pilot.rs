@@ -156,6 +156,37 @@ pub fn run<T: Clone + Default + Send + Sync>(
     (surfaces, values, estimates)
 }
 
+/// The shading point of camera sample 0 of `pixel` and what it hit, if it hit anything.
+fn first_surface(scene: &Scene, pixel: UVec2) -> Option<(ShadingPoint<'_>, Surface)> {
+    let ray = CameraSample::new(scene, pixel, 0).ray;
+    let hit = scene.intersect(&ray)?;
+    let point = ShadingPoint::new(scene, hit, -ray.direction);
+    let surface = Surface {
+        bsdf: scene.shape_bsdf[hit.shape as usize][point.ctx.side as usize],
+        normal: point.frame.to_world(Vec3::Z),
+        depth: hit.t * ray.direction.length(),
+    };
+    Some((point, surface))
+}
+
+/// What camera sample 0 of each pixel of the window hit (row order), for filters that pool only
+/// similar neighbours without a pilot.
+pub fn surfaces(scene: &Scene) -> Vec<Option<Surface>> {
+    let window = scene.window;
+    let row = window.width as usize;
+    let mut surfaces = vec![None; row * window.height as usize];
+    surfaces
+        .par_chunks_mut(row.max(1))
+        .enumerate()
+        .for_each(|(y, surfaces)| {
+            for (x, surface) in surfaces.iter_mut().enumerate() {
+                let pixel = UVec2::new(window.x + x as u32, window.y + y as u32);
+                *surface = first_surface(scene, pixel).map(|(_, s)| s);
+            }
+        });
+    surfaces
+}
+
 /// The pilot of one pixel, writing each light's values (`per_light` each) and estimate into
 /// `values` and `estimates`: returns the surface camera sample 0 hit.
 fn pilot_pixel<T>(
@@ -166,14 +197,7 @@ fn pilot_pixel<T>(
     per_light: usize,
     visit: &(impl Fn(usize, &Phase, &mut [T]) + Sync),
 ) -> Option<Surface> {
-    let ray = CameraSample::new(scene, pixel, 0).ray;
-    let hit = scene.intersect(&ray)?;
-    let point = ShadingPoint::new(scene, hit, -ray.direction);
-    let surface = Surface {
-        bsdf: scene.shape_bsdf[hit.shape as usize][point.ctx.side as usize],
-        normal: point.frame.to_world(Vec3::Z),
-        depth: hit.t * ray.direction.length(),
-    };
+    let (point, surface) = first_surface(scene, pixel)?;
     let mut sampler = pilot_sampler(scene, pixel);
     PhaseBuffers::with_thread_local(|buffers| {
         for (light, emitter) in scene.emitters.iter().enumerate() {

@@ -20,6 +20,12 @@
 //!   stratified estimator (as `exact_alpha` with `variance: "stratified"`); "second_order" — the
 //!   paper's α̂ from the pooled Î₁, Î₂.
 //! - `clamp` (interval, default (0.025, 0.975), within [0, 1]): the interval α is chosen in.
+//! - `statistics` (choice, default "pilot"): where the statistics come from: "pilot" — the
+//!   pilot pass above; "passes" — the earlier passes of a render in passes (docs/integrators.md,
+//!   "Learned α"): every sample adds the objective (or Î₁, Î₂) to its pixel's sums, pooled as
+//!   above over a window whose radius is `radius` pixels at 256 pixels along the image's larger
+//!   side and scales with it; every sample of a pass at the α its pixel and light learned before
+//!   it; the first pass (and a one-pass render) at α = ½. `pilot_samples` does not apply.
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 //!
 //! Memory: 4 · 18 bytes per pixel and light for the pilot's statistics (4 · 3 for
@@ -27,17 +33,18 @@
 //! light.
 
 use crate::allocation::{Allocation, Weighted};
-use crate::alpha_family::{CLAMP_SPEC, pilot_samples_spec, read_clamp, read_pilot_samples};
+use crate::alpha_family::{
+    CLAMP_SPEC, STATISTICS_SPEC, pilot_samples_spec, read_clamp, read_learns, read_pilot_samples,
+};
+use crate::learned::{AlphaMap, LearnedAlpha, NODES, Pooled, alpha_of};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
 use crate::phase::{LightEstimate, Observer, PhaseRole, SampleSplit};
 use crate::pilot::{self, PilotEstimates, Surface};
 use crate::sampling::LightSampling;
-use crate::second_order::{SecondOrderMoments, second_order_alpha};
+use crate::second_order::SecondOrderMoments;
 use crate::weighting::{Balance, PerSample, Weighting};
-use glam::UVec2;
 use lumis_core::integrator::Integrator;
-use lumis_core::output::Window;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 use lumis_core::scene::Scene;
@@ -52,8 +59,6 @@ pub const OBJECTIVE: &str = "objective";
 pub const EXACT: &str = "exact";
 pub const STRATIFIED: &str = "stratified";
 pub const SECOND_ORDER: &str = "second_order";
-/// Evenly spaced α in the clamp interval at which each pixel's objective is kept.
-const NODES: usize = 17;
 
 static PARAMS: &[ParamSpec] = &[
     SAMPLES_SPEC,
@@ -80,75 +85,9 @@ static PARAMS: &[ParamSpec] = &[
         description: "exact: minimum of the pooled second moment; stratified: of the pooled variance of the stratified estimator; second_order: the paper's α̂ from pooled sums",
     },
     CLAMP_SPEC,
+    STATISTICS_SPEC,
     AOVS_SPEC,
 ];
-
-/// What each pixel keeps of its pilot, per light.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Pooled {
-    /// An objective of [`crate::moments`] at [`NODES`] α, then 1 if the pilot is informative.
-    Nodes(Objective),
-    /// Î₁, Î₂ (sums), then 1 if Î₂ > 0.
-    SecondOrder,
-}
-
-impl Pooled {
-    fn per_light(self) -> usize {
-        match self {
-            Pooled::Nodes(_) => NODES + 1,
-            Pooled::SecondOrder => 3,
-        }
-    }
-}
-
-/// α per pixel of the window and light.
-#[derive(Clone, Debug, Default)]
-pub struct AlphaMap {
-    window: Option<Window>,
-    lights: usize,
-    alphas: Vec<f32>,
-}
-
-impl AlphaMap {
-    /// α at `pixel` (film coordinates) for `light`, if the pilot covered it.
-    pub fn get(&self, pixel: UVec2, light: usize) -> Option<f64> {
-        let w = self.window?;
-        let (x, y) = (pixel.x.checked_sub(w.x)?, pixel.y.checked_sub(w.y)?);
-        if x >= w.width || y >= w.height {
-            return None;
-        }
-        let a = *self
-            .alphas
-            .get((y * w.width + x) as usize * self.lights + light)?;
-        a.is_finite().then_some(a as f64)
-    }
-}
-
-/// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative.
-fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> {
-    match pooled {
-        Pooled::SecondOrder => {
-            (values[2] > 0.0).then_some(())?;
-            second_order_alpha(values[0] as f64, values[1] as f64)
-        }
-        Pooled::Nodes(_) => {
-            (values[NODES] > 0.0).then_some(())?;
-            let v = &values[..NODES];
-            let best = (0..NODES).min_by(|&a, &b| v[a].total_cmp(&v[b]))?;
-            let step = (clamp[1] - clamp[0]) / (NODES - 1) as f64;
-            let mut alpha = clamp[0] + step * best as f64;
-            if best > 0 && best < NODES - 1 {
-                // The vertex of the parabola through the best node and its neighbours.
-                let (l, c, r) = (v[best - 1] as f64, v[best] as f64, v[best + 1] as f64);
-                let curvature = l - 2.0 * c + r;
-                if curvature > 0.0 && curvature.is_finite() {
-                    alpha += step * (0.5 * (l - r) / curvature).clamp(-1.0, 1.0);
-                }
-            }
-            Some(alpha)
-        }
-    }
-}
 
 /// Pools the pilot's per-pixel values (`per_light` per light) over the similar pixels of each
 /// pixel's window, and turns them into α.
@@ -200,11 +139,7 @@ fn pool(
                 }
             }
         });
-    AlphaMap {
-        window: Some(window),
-        lights,
-        alphas,
-    }
+    AlphaMap::new(window, lights, alphas)
 }
 
 /// The allocation: N samples at the pooled α, camera sample 0 reusing the pilot.
@@ -273,16 +208,21 @@ impl Allocation for PooledAlpha {
     }
 }
 
-/// The allocation of the parameters above but `samples` and `aovs`, for N = `samples` (also
-/// `path`'s at its first vertex).
-pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha, PluginError> {
-    let pilot_samples = read_pilot_samples(params, 8, samples)?;
-    let radius = params.int(RADIUS)? as u32;
-    let pooled = match params.choice(OBJECTIVE)? {
+/// Reads `objective`.
+fn read_pooled(params: &mut Params) -> Result<Pooled, PluginError> {
+    Ok(match params.choice(OBJECTIVE)? {
         EXACT => Pooled::Nodes(Objective::Mixture),
         STRATIFIED => Pooled::Nodes(Objective::Stratified),
         _ => Pooled::SecondOrder,
-    };
+    })
+}
+
+/// The allocation of the parameters above but `samples`, `statistics` and `aovs`, for N =
+/// `samples` (also `path`'s at its first vertex).
+pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha, PluginError> {
+    let pilot_samples = read_pilot_samples(params, 8, samples)?;
+    let radius = params.int(RADIUS)? as u32;
+    let pooled = read_pooled(params)?;
     let clamp = read_clamp(params)?;
     Ok(PooledAlpha {
         samples,
@@ -297,6 +237,13 @@ pub fn read_allocation(params: &mut Params, samples: u32) -> Result<PooledAlpha,
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     let samples = read_samples(params)?;
+    if read_learns(params)? {
+        let radius = params.int(RADIUS)? as u32;
+        let pooled = read_pooled(params)?;
+        let clamp = read_clamp(params)?;
+        let allocation = LearnedAlpha::new(samples, pooled, clamp, radius);
+        return MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)));
+    }
     let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }

@@ -1,0 +1,200 @@
+//! Renders in passes that learn (docs/integrators.md, "Per-pixel budgets" and "Learned α"): per-
+//! pixel budgets and α learned from earlier passes converge to `balance`'s image (the same-mean
+//! test with its power, on the glossy env-map scene, the Veach layout and paper scene 04); the
+//! first pass's α is the default, and α of pass k is a function of the passes before it only.
+
+use crate::common;
+use crate::integrators::{InPasses, same_mean_rendered, same_mean_scene};
+use lumis::budgets::Budgets;
+use lumis::integrators::{alpha, aovs, balance, exact_alpha, pooled_alpha};
+use lumis::passes::{Settings, Stopping};
+use lumis::progressive::{Control, RenderState, Scope};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+/// The relative bias each comparison must detect with probability 0.9.
+const DETECTABLE: f64 = 0.02;
+
+/// The renders in passes compared with plain `balance`: per-pixel budgets alone, each learned
+/// α alone and with per-pixel budgets.
+fn configurations() -> Vec<(String, Vec<String>, Option<InPasses>)> {
+    let passes = |budgets| Some(InPasses { passes: 4, budgets });
+    let learned = |name: &str| {
+        vec![
+            format!("integrator.type={name}"),
+            "integrator.statistics=passes".to_string(),
+        ]
+    };
+    vec![
+        (
+            format!("{} + per-pixel budgets", balance::NAME),
+            vec![format!("integrator.type={}", balance::NAME)],
+            passes(Budgets::PerPixel),
+        ),
+        (
+            format!("learned {}", alpha::NAME),
+            learned(alpha::NAME),
+            passes(Budgets::Uniform),
+        ),
+        (
+            format!("learned {}", exact_alpha::NAME),
+            learned(exact_alpha::NAME),
+            passes(Budgets::Uniform),
+        ),
+        (
+            format!("learned {} + per-pixel budgets", exact_alpha::NAME),
+            learned(exact_alpha::NAME),
+            passes(Budgets::PerPixel),
+        ),
+        (
+            format!("learned {} + per-pixel budgets", pooled_alpha::NAME),
+            learned(pooled_alpha::NAME),
+            passes(Budgets::PerPixel),
+        ),
+    ]
+}
+
+fn same_mean_learning(name: &str, path: &Path, spp: u32) {
+    let balance_type = vec![format!("integrator.type={}", balance::NAME)];
+    same_mean_rendered(
+        name,
+        path,
+        spp,
+        &balance_type,
+        &configurations(),
+        DETECTABLE,
+    );
+}
+
+fn repo_path(relative: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+}
+
+#[test]
+fn same_mean_learning_glossy_under_an_env_map() {
+    let (name, _dir, path) = same_mean_scene(1);
+    same_mean_learning(&name, &path, 16);
+}
+
+#[test]
+fn same_mean_learning_on_the_veach_layout() {
+    let (name, _dir, path) = same_mean_scene(4);
+    same_mean_learning(&name, &path, 8);
+}
+
+#[test]
+fn same_mean_learning_on_paper_scene_04() {
+    same_mean_learning("paper scene 04", &repo_path("scenes/paper/04.ron"), 8);
+}
+
+/// Renders `passes` passes of 4 samples (of a 16-sample render in 4 passes) of `loaded` from
+/// `state`, and returns the state.
+fn passes(loaded: &mut lumis::scene::load::LoadedScene, state: &mut RenderState, passes: usize) {
+    let settings = settings();
+    let scope = Scope {
+        max_passes: Some(passes),
+        ..Scope::whole(2)
+    };
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        &settings,
+        state,
+        scope,
+        &AtomicBool::new(false),
+        &|_| {},
+        &mut |_| Control::Continue,
+    )
+    .expect("render");
+}
+
+fn settings() -> Settings {
+    Settings {
+        stopping: Stopping::Samples { spp: 16, passes: 4 },
+        ..Settings::samples(16)
+    }
+}
+
+fn load(integrator: &str, learned: bool) -> lumis::scene::load::LoadedScene {
+    let mut overrides = vec![
+        "film.width=24".to_string(),
+        "film.height=18".to_string(),
+        "sampler.spp=16".to_string(),
+        "sampler.jitter=false".to_string(),
+        format!("integrator.type={integrator}"),
+        "integrator.samples=8".to_string(),
+        r#"integrator.aovs=["alpha"]"#.to_string(),
+    ];
+    if learned {
+        overrides.push("integrator.statistics=passes".to_string());
+    }
+    let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
+    common::load(&repo_path("scenes/veach.ron"), &overrides).expect("scene")
+}
+
+/// The first pass of a learning α draws at α = ½ with balance weights: its sums are `balance`'s
+/// bit for bit (colours and the α AOV). The α of pass 3 is a function of passes 0–2 only: an
+/// integrator that never saw them but their sums (a fresh one, resumed from the state after
+/// pass 2) uses the same α in pass 3 — bit for bit the same α AOV sums — even when pass 3's
+/// samples are other ones (another seed); and it is not ½ everywhere (it learned something).
+#[test]
+fn the_first_pass_is_balance_and_alpha_reads_only_earlier_passes() {
+    for integrator in [alpha::NAME, exact_alpha::NAME, pooled_alpha::NAME] {
+        let mut learning = load(integrator, true);
+        let mut reference = load(balance::NAME, false);
+        let mut first =
+            RenderState::new(&learning.scene, learning.integrator.as_ref(), &settings());
+        let mut balanced =
+            RenderState::new(&reference.scene, reference.integrator.as_ref(), &settings());
+        passes(&mut learning, &mut first, 1);
+        passes(&mut reference, &mut balanced, 1);
+        assert!(
+            first.sums.color == balanced.sums.color,
+            "{integrator}: the first pass is not balance's"
+        );
+        let lights = learning.scene.emitters.len();
+        let alpha_sums = |state: &RenderState| -> Vec<f64> {
+            // Each light's AOV sums begin with Σ α and the shading points.
+            let stride = state.sums.stride;
+            (0..state.sums.samples.len() * lights)
+                .flat_map(|i| {
+                    let at = (i / lights) * stride + (i % lights) * aovs::PER_LIGHT;
+                    state.sums.sums[at..at + 2].to_vec()
+                })
+                .collect()
+        };
+        assert!(alpha_sums(&first) == alpha_sums(&balanced));
+
+        let mut before = first.clone();
+        passes(&mut learning, &mut before, 2);
+        let mut continued = before.clone();
+        passes(&mut learning, &mut continued, 1);
+        let mut fresh = load(integrator, true);
+        fresh.scene.seed += 1;
+        let mut resumed = before.clone();
+        passes(&mut fresh, &mut resumed, 1);
+        let in_pass = |after: &RenderState| -> Vec<f64> {
+            alpha_sums(after)
+                .iter()
+                .zip(alpha_sums(&before))
+                .map(|(a, b)| a - b)
+                .collect()
+        };
+        assert!(
+            resumed.sums.color != continued.sums.color,
+            "{integrator}: another seed gave the same samples"
+        );
+        let (learned, again) = (in_pass(&continued), in_pass(&resumed));
+        assert!(
+            learned == again,
+            "{integrator}: α of pass 3 depends on more than passes 0–2"
+        );
+        // Pairs (Σ α, shading points): α ≠ ½ somewhere.
+        assert!(
+            learned
+                .chunks(2)
+                .any(|c| c[1] > 0.0 && (c[0] / c[1] - 0.5).abs() > 0.05),
+            "{integrator}: α stayed ½ after three passes"
+        );
+    }
+}
