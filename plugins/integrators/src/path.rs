@@ -19,8 +19,9 @@
 //! - `hide_emitters` (bool, default false): emitters the camera sees directly are hidden, as
 //!   Mitsuba does: its rays pass through area emitters, and the environment behind is black.
 //! - `lights` (choice, default "all"): "all" estimates every light at every vertex, as the
-//!   direct integrators do; "one" one light per vertex, chosen uniformly (Mitsuba's), its
-//!   estimate divided by the probability of choosing it.
+//!   direct integrators do; "one" one light per vertex, chosen as Mitsuba does, with
+//!   probability in proportion to its emitter's `sampling_weight` (a parameter of every
+//!   emitter, default 1: uniformly), its estimate divided by the probability of choosing it.
 //! - `samples` (integer, default 2, in [1, 1048576]): N, samples per light at the first vertex.
 //! - `deep_samples` (integer, default 2, in [1, 1048576]): N per light at the vertices past the
 //!   first, split n_B = ⌊α N + ½⌋ with α = `fixed` for the fixed allocation, ½ for the others.
@@ -379,6 +380,9 @@ pub struct Path {
     /// With a learned α: its cache, made in `preprocess`.
     cache: Option<VertexCache>,
     light_lists: LightLists,
+    /// The lights' `sampling_weight`s, cumulated, where they are not all equal (empty:
+    /// `lights: one` chooses uniformly).
+    light_cdf: Vec<f32>,
     /// Vertices at which lights are estimated are those below it (Mitsuba's `max_depth`;
     /// `u32::MAX` unbounded).
     max_depth: u32,
@@ -500,6 +504,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         cache_resolution,
         cache: None,
         light_lists: LightLists::default(),
+        light_cdf: Vec::new(),
         max_depth,
         rr_depth,
         hide_emitters,
@@ -589,7 +594,7 @@ impl Path {
             }
             Lights::One if lights > 0 => {
                 let u = sample.sampler.next_1d();
-                let light = ((u * lights as f32) as usize).min(lights - 1);
+                let (light, inverse_probability) = choose_light(&self.light_cdf, u, lights);
                 let value = self.estimate_light(
                     scene,
                     sp,
@@ -600,7 +605,7 @@ impl Path {
                     slot,
                     sums,
                 );
-                path.add(value * lights as f32);
+                path.add(value * inverse_probability);
             }
             Lights::One => {}
         }
@@ -813,6 +818,27 @@ impl Path {
     }
 }
 
+/// The light `lights: one` chooses with `u` among `lights` lights, and 1 / its probability:
+/// uniformly where `cdf` is empty, else in proportion to the lights' `sampling_weight`s
+/// (Mitsuba's), `cdf` their running sums.
+#[inline(always)]
+fn choose_light(cdf: &[f32], u: f32, lights: usize) -> (usize, f32) {
+    let Some(&total) = cdf.last() else {
+        return (
+            ((u * lights as f32) as usize).min(lights - 1),
+            lights as f32,
+        );
+    };
+    let target = u * total;
+    // The first light whose interval holds the target: never one of weight 0, even where
+    // rounding puts the target at the total.
+    let light = cdf
+        .partition_point(|&c| c <= target)
+        .min(cdf.partition_point(|&c| c < total));
+    let weight = cdf[light] - light.checked_sub(1).map_or(0.0, |l| cdf[l]);
+    (light, total / weight)
+}
+
 /// The `depth_samples` channel of vertex `depth`.
 fn depth_channel(depth: u32) -> usize {
     (depth as usize).min(DEPTH_CHANNELS) - 1
@@ -841,6 +867,18 @@ impl Integrator for Path {
     fn preprocess(&mut self, scene: &Scene) {
         self.first.preprocess(scene);
         self.deeper.preprocess(scene);
+        let weights = &scene.emitter_weights;
+        self.light_cdf = if weights.iter().all(|&w| w == weights[0]) {
+            Vec::new()
+        } else {
+            weights
+                .iter()
+                .scan(0.0f32, |sum, &w| {
+                    *sum += w;
+                    Some(*sum)
+                })
+                .collect()
+        };
         if self.deep != Deep::Split {
             let (delta, mixed) =
                 (0..scene.emitters.len()).partition(|&e| scene.emitters[e].is_delta());
@@ -980,5 +1018,41 @@ inventory::submit! {
         description: "path tracing with the MIS family's per-light estimator (any weighting, any first-vertex allocation) at every vertex",
         params: PARAMS,
         create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::choose_light;
+
+    /// With `sampling_weight`s, each light is chosen with probability w_j / Σ w (over a
+    /// stratified grid of u, exactly up to one stratum), never one of weight 0, and its estimate
+    /// is scaled by Σ w / w_j; without, uniformly (the old rule).
+    #[test]
+    fn lights_are_chosen_in_proportion_to_their_sampling_weight() {
+        let weights = [1.0f32, 0.0, 4.0, 0.5, 0.0];
+        let cdf: Vec<f32> = weights
+            .iter()
+            .scan(0.0, |s, &w| {
+                *s += w;
+                Some(*s)
+            })
+            .collect();
+        let total = cdf[cdf.len() - 1];
+        let n = 100_000;
+        let mut counts = [0usize; 5];
+        for i in 0..n {
+            let u = (i as f32 + 0.5) / n as f32;
+            let (light, inverse) = choose_light(&cdf, u, weights.len());
+            assert!(weights[light] > 0.0, "u {u}: light {light} of weight 0");
+            assert!((inverse - total / weights[light]).abs() <= 1e-5 * inverse);
+            counts[light] += 1;
+        }
+        for (count, w) in counts.iter().zip(weights) {
+            let expected = w / total * n as f32;
+            assert!((*count as f32 - expected).abs() <= 2.0, "{counts:?}");
+        }
+        assert_eq!(choose_light(&cdf, 1.0 - f32::EPSILON / 2.0, 5).0, 3);
+        assert_eq!(choose_light(&[], 0.99, 4), (3, 4.0));
     }
 }
