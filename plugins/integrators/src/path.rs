@@ -57,8 +57,9 @@
 //!   vertex, as the direct integrators write them) and "depth_samples" (the samples drawn at
 //!   each vertex depth, channels d1 … d7 and d8plus, summed over the pixel's camera samples).
 //!
-//! Why one file of over 600 lines: one plugin, one file: the path loop, its per-vertex estimates,
-//! roulette and the depth AOV, with its tests.
+//! Why one file of over 600 lines: one plugin, one file: the path loop, its per-vertex estimates
+//! (the split and the one-sample mixture), light choice, roulette and the depth AOV, with its
+//! tests; the mixture's cache is [`crate::vertex_cache`].
 
 use crate::allocation::{Method, Weighted};
 use crate::alpha_family::{
@@ -185,7 +186,7 @@ static PARAMS: &[ParamSpec] = &[
             default: ALL,
         },
         unit: "",
-        description: "all: every light at every vertex (as the direct integrators); one: one light per vertex, chosen uniformly (as Mitsuba)",
+        description: "all: every light at every vertex (as the direct integrators); one: one light per vertex, chosen in proportion to the emitters' sampling_weight (as Mitsuba)",
     },
     ParamSpec {
         description: "N: samples per light at the first vertex",
@@ -674,6 +675,23 @@ struct Pending {
     throughput: Rgb,
 }
 
+/// The mixture samples of one camera sample's path, the first [`MAX_RECORDED`].
+#[derive(Default)]
+struct Recording {
+    pending: [Pending; MAX_RECORDED],
+    count: usize,
+}
+
+impl Recording {
+    #[inline(always)]
+    fn push(&mut self, vertex: Pending) {
+        if let Some(slot) = self.pending.get_mut(self.count) {
+            *slot = vertex;
+            self.count += 1;
+        }
+    }
+}
+
 impl Path {
     /// Whether vertex `depth` at `sp` draws from the one-sample mixture: past the first
     /// vertex, with a mixture asked for, a surface that only reflects and not only through a
@@ -926,8 +944,8 @@ impl Integrator for Path {
             throughput: Rgb::ONE,
             eta: 1.0,
         };
-        let mut pending = [Pending::default(); MAX_RECORDED];
-        let mut recorded = 0;
+        // Only with a cache: without, nothing is written (a `None` is its tag alone).
+        let mut recording = self.cache.as_ref().map(|_| Recording::default());
         PhaseBuffers::with_thread_local(|buffers| {
             for depth in 1..MAX_VERTICES {
                 // Mitsuba's vertex d − 1 samples lights when d < max_depth.
@@ -945,9 +963,8 @@ impl Integrator for Path {
                     let step = self.mixture_vertex(scene, &sp, sample, &mut path, &mut vertex);
                     let Some(step) = step else { break };
                     path.throughput *= step.weight;
-                    if self.cache.is_some() && recorded < MAX_RECORDED {
-                        pending[recorded] = vertex;
-                        recorded += 1;
+                    if let Some(recording) = &mut recording {
+                        recording.push(vertex);
                     }
                     // What the direction meets is the vertex's light estimate.
                     let Some(next) = step.hit else {
@@ -997,7 +1014,9 @@ impl Integrator for Path {
                 ray = continuation.ray;
             }
         });
-        self.record(&mut pending[..recorded], path.radiance);
+        if let Some(recording) = &mut recording {
+            self.record(&mut recording.pending[..recording.count], path.radiance);
+        }
         path.radiance
     }
 
