@@ -89,6 +89,19 @@ def main():
         images = {c: np.stack([render(args, scene, c, 1000 + s, args.work / f"{scene}_{c}_{s}.exr")
                                for s in range(args.runs)]) for c in CONFIGS}
         base = images["split"]
+        # What learning buys: against the fixed mixture, whose renders share each seed's first
+        # pass (α = ½ in both), so the seeds are resampled together.
+        for config in ("learned", "guiding_fraction"):
+            ratio = np.array(variances(images[config])) / np.array(variances(images["mixture"]))
+            boot = []
+            for _ in range(args.bootstrap):
+                i = rng.integers(0, args.runs, args.runs)
+                boot.append(np.array(variances(images[config][i]))
+                            / np.array(variances(images["mixture"][i])))
+            lo, hi = np.percentile(np.array(boot), [2.5, 97.5], axis=0)
+            print(f"{scene}: {config}: variance / mixture's {ratio[0]:.3f} [{lo[0]:.3f}, "
+                  f"{hi[0]:.3f}], relative variance / mixture's {ratio[1]:.3f} [{lo[1]:.3f}, "
+                  f"{hi[1]:.3f}] (paired seeds)", flush=True)
         for config, imgs in images.items():
             ratio = np.array(variances(imgs)) / np.array(variances(base))
             boot = []

@@ -982,3 +982,64 @@ fn mean_and_variance_of_mean(values: &[[f64; 3]]) -> (f64, f64) {
     let (mean, se) = common::mean_and_standard_error(&y);
     (mean, se * se)
 }
+
+/// The one-sample mixture past the first vertex draws its directions with the density its
+/// weight divides by, q_α = α p_B + (1 − α) p_J: χ² over the sphere of directions at a point
+/// of a glossy floor lit by a sphere light and a rectangle light, for each light and α ∈ {0.2,
+/// ½, 0.9} (Šidák over the cases at the suite's rate).
+#[test]
+fn the_mixture_samples_its_density() {
+    use lumis::chi2::Chi2Test;
+    use lumis::geometry::Ray;
+    use lumis::integrators::shading_point::ShadingPoint;
+    let text = r#"Scene(
+    camera: (position: (0, 1, -3), target: (0, 0, 0), fov: 30),
+    film: (width: 4, height: 4),
+    integrator: (type: "path", deep_allocation: "mixture"),
+    bsdfs: {
+        "floor": (type: "glossy", roughness: 0.3, specular: 0.5, diffuse: 0.3),
+        "black": (type: "diffuse", reflectance: 0),
+    },
+    shapes: [
+        (type: "rectangle", bsdf: "floor",
+            transform: (scale: (5, 5, 1), rotate: [(axis: (1, 0, 0), angle: -90)])),
+        (type: "sphere", bsdf: "black", center: (0.5, 1.2, 0.6), radius: 0.4,
+            emitter: (type: "area", radiance: 1)),
+        (type: "rectangle", bsdf: "black",
+            transform: (look_at: (origin: (-1, 1.5, 0.5), target: (0, 0, 0)), scale: (0.6, 0.3, 1)),
+            emitter: (type: "area", radiance: 1)),
+    ],
+)"#;
+    let (_dir, file) = scene_file("mixture.ron", text);
+    let loaded = common::load(&file, &[]).expect("loads");
+    let scene = &loaded.scene;
+    let camera = glam::Vec3::new(0.0, 1.0, -3.0);
+    let ray = Ray {
+        origin: camera,
+        direction: (glam::Vec3::new(0.1, 0.0, 0.05) - camera).normalize(),
+        t_max: f32::INFINITY,
+    };
+    let hit = scene.geometry.intersect(&ray).expect("the floor");
+    let sp = ShadingPoint::new(scene, hit, -ray.direction);
+    let cases: Vec<(usize, f64)> = (0..scene.emitters.len())
+        .flat_map(|light| [0.2, 0.5, 0.9].map(|alpha| (light, alpha)))
+        .collect();
+    let alpha_test = sidak(FAMILY_FALSE_ALARM, cases.len());
+    for (light, alpha) in cases {
+        let outcome = Chi2Test {
+            axis: sp.frame.to_world(glam::Vec3::Z),
+            samples: 400_000,
+            horizon: Some(sp.frame.to_world(glam::Vec3::Z)),
+            ..Chi2Test::default()
+        }
+        .run(
+            |sampler| {
+                path::sample_mixture(scene, &sp, light, alpha, sampler)
+                    .filter(|d| !d.delta)
+                    .map(|d| d.ray.direction)
+            },
+            |wi| path::mixture_density(scene, &sp, light, alpha, wi),
+        );
+        outcome.assert_passes(alpha_test, &format!("mixture, light {light}, α = {alpha}"));
+    }
+}

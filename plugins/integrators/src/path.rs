@@ -90,6 +90,7 @@ use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::passes::PassContext;
 use lumis_core::registry::IntegratorPlugin;
+use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
 
 /// The plugin's name in scene files, and its parameters' names.
@@ -745,45 +746,15 @@ impl Path {
         pending.sample.alpha = alpha;
         pending.radiance = path.radiance;
         pending.throughput = path.throughput;
-        let mixture = |p_bsdf: f32, p_light: f32| {
-            (alpha * p_bsdf as f64 + (1.0 - alpha) * p_light as f64) as f32
-        };
-        let (weight, ray) = if (sample.sampler.next_1d() as f64) < alpha {
-            let (u_lobe, u) = (sample.sampler.next_1d(), sample.sampler.next_2d());
-            let s = sp.bsdf.sample(&sp.ctx, sp.wo, u_lobe, u)?;
-            let wi = sp.frame.to_world(s.wi);
-            if !sp.leaves_toward::<false>(wi, s.wi) {
-                return None;
-            }
-            let ray = sp.origin.ray(&sp.hit, wi);
-            if s.delta {
-                // Only BSDF sampling draws a Dirac lobe: chosen with probability α.
-                pending.sample.p_bsdf = 0.0;
-                (s.weight / alpha as f32, ray)
-            } else {
-                let p_light = light_density_of(scene, sp, light, &ray);
-                pending.sample.p_bsdf = s.pdf as f64;
-                pending.sample.p_light = p_light as f64;
-                (s.weight * (s.pdf / mixture(s.pdf, p_light)), ray)
-            }
+        let direction = sample_mixture(scene, sp, light, alpha, &mut sample.sampler)?;
+        // A Dirac lobe's sample has no density to compare: it is not recorded.
+        pending.sample.p_bsdf = if direction.delta {
+            0.0
         } else {
-            let reference = ReferencePoint {
-                position: sp.hit.position,
-            };
-            let ls =
-                scene.emitters[light].sample_direction(&reference, sample.sampler.next_2d())?;
-            let wi = sp.frame.to_local(ls.wi);
-            if !sp.scatters_from_sample::<false>(&ls, wi.z) {
-                return None;
-            }
-            let (f, p_bsdf) = sp.bsdf.eval_pdf(&sp.ctx, sp.wo, wi);
-            if f == Rgb::ZERO {
-                return None;
-            }
-            pending.sample.p_bsdf = p_bsdf as f64;
-            pending.sample.p_light = ls.pdf as f64;
-            (f / mixture(p_bsdf, ls.pdf), sp.origin.ray(&sp.hit, ls.wi))
+            direction.p_bsdf as f64
         };
+        pending.sample.p_light = direction.p_light as f64;
+        let (weight, ray) = (direction.weight, direction.ray);
         let hit = scene
             .geometry
             .first_hit_leaving(&ray, &sp.hit)
@@ -834,6 +805,95 @@ impl Path {
         }
         true
     }
+}
+
+/// One direction drawn from the one-sample mixture at a shading point ([`sample_mixture`]).
+pub struct MixtureDirection {
+    /// The ray leaving the point along it.
+    pub ray: Ray,
+    /// f |cos θ| / q_α (for a Dirac lobe of the BSDF, its sample's weight over α).
+    pub weight: Rgb,
+    /// Its densities under BSDF sampling and under light J's sampling, in solid angle.
+    pub p_bsdf: f32,
+    pub p_light: f32,
+    /// Drawn from a Dirac lobe of the BSDF (only BSDF sampling draws it).
+    pub delta: bool,
+}
+
+/// Draws one direction at `sp`, a point whose BSDF only reflects, from the one-sample mixture
+/// q_α = α p_B + (1 − α) p_J of BSDF sampling and non-delta light `light`'s sampling; `None`
+/// where the drawn direction carries nothing (no direction drawn, or one the surface does not
+/// scatter into). Its density over the directions it returns is [`mixture_density`].
+pub fn sample_mixture(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    alpha: f64,
+    sampler: &mut Sampler,
+) -> Option<MixtureDirection> {
+    let mixture =
+        |p_bsdf: f32, p_light: f32| (alpha * p_bsdf as f64 + (1.0 - alpha) * p_light as f64) as f32;
+    if (sampler.next_1d() as f64) < alpha {
+        let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
+        let s = sp.bsdf.sample(&sp.ctx, sp.wo, u_lobe, u)?;
+        let wi = sp.frame.to_world(s.wi);
+        if !sp.leaves_toward::<false>(wi, s.wi) {
+            return None;
+        }
+        let ray = sp.origin.ray(&sp.hit, wi);
+        if s.delta {
+            // Only BSDF sampling draws a Dirac lobe: chosen with probability α.
+            return Some(MixtureDirection {
+                ray,
+                weight: s.weight / alpha as f32,
+                p_bsdf: s.pdf,
+                p_light: 0.0,
+                delta: true,
+            });
+        }
+        let p_light = light_density_of(scene, sp, light, &ray);
+        Some(MixtureDirection {
+            ray,
+            weight: s.weight * (s.pdf / mixture(s.pdf, p_light)),
+            p_bsdf: s.pdf,
+            p_light,
+            delta: false,
+        })
+    } else {
+        let reference = ReferencePoint {
+            position: sp.hit.position,
+        };
+        let ls = scene.emitters[light].sample_direction(&reference, sampler.next_2d())?;
+        let wi = sp.frame.to_local(ls.wi);
+        if !sp.scatters_from_sample::<false>(&ls, wi.z) {
+            return None;
+        }
+        let (f, p_bsdf) = sp.bsdf.eval_pdf(&sp.ctx, sp.wo, wi);
+        if f == Rgb::ZERO {
+            return None;
+        }
+        Some(MixtureDirection {
+            ray: sp.origin.ray(&sp.hit, ls.wi),
+            weight: f / mixture(p_bsdf, ls.pdf),
+            p_bsdf,
+            p_light: ls.pdf,
+            delta: false,
+        })
+    }
+}
+
+/// q_α toward world direction `wi` at `sp` for light `light`: the density of
+/// [`sample_mixture`]'s non-Dirac directions (for its χ² test).
+pub fn mixture_density(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    alpha: f64,
+    wi: glam::Vec3,
+) -> f64 {
+    let p_bsdf = sp.bsdf.pdf(&sp.ctx, sp.wo, sp.frame.to_local(wi)) as f64;
+    let p_light = light_density_of(scene, sp, light, &sp.origin.ray(&sp.hit, wi)) as f64;
+    alpha * p_bsdf + (1.0 - alpha) * p_light
 }
 
 /// The light `lights: one` chooses with `u` among `lights` lights, and 1 / its probability:
