@@ -7,7 +7,9 @@ unbounded (-1), mean images compared with the race's block test (`race.compare`)
 Scenes: a Cornell box (diffuse walls, coloured sides, a ceiling light: colour bleeding is indirect
 light); the same box holding a smooth glass sphere (`dielectric`) and a rough one
 (`roughdielectric`, GGX α = 0.2) instead of its blocks; glossy metal spheres (`roughconductor`,
-GGX α = 0.15, Fresnel 1) on a diffuse floor under the studio environment map (`glossy`).
+GGX α = 0.15, Fresnel 1) on a diffuse floor under the studio environment map (`glossy`); the
+Veach MIS scene as the race builds it (four `roughconductor` plates, GGX α 0.005 to 0.1, Fresnel
+1, four sphere lights of equal power, a diffuse floor; `veach`).
 
 Run by hand from the repository (scalar_rgb needs no LLVM):
     benches/mitsuba/.venv/bin/python benches/mitsuba/path_check.py --lumis target/release/lumis
@@ -20,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from race import REPO, STUDIO, compare, lumis_render, read_exr, write_exr
+from race import (REPO, STUDIO, VEACH_CAMERA, VEACH_LIGHTS, VEACH_PLATES, VEACH_ROUGHNESS,
+                  compare, look_at, lumis_render, read_exr, write_exr)
 
 BOX = """<scene version="3.0.0">
     <integrator type="path">
@@ -157,6 +160,52 @@ GLOSSY = """<scene version="3.0.0">
 """
 
 
+def veach_template():
+    """The race's Veach MIS scene (race.veach) as Mitsuba XML with a `path` integrator."""
+    c = VEACH_CAMERA
+    matrix = lambda m: " ".join(f"{x:.9g}" for x in m.flatten())
+    plates = "".join(f"""
+    <shape type="rectangle">
+        <transform name="to_world"><matrix value="{matrix(look_at(o, t, (0, 0, -1), (4, 0.55, 1)))}"/></transform>
+        <bsdf type="twosided"><bsdf type="roughconductor">
+            <string name="distribution" value="ggx"/><float name="alpha" value="{a}"/>
+            <string name="material" value="none"/>
+        </bsdf></bsdf>
+    </shape>""" for (o, t), a in zip(VEACH_PLATES, VEACH_ROUGHNESS))
+    lights = "".join(f"""
+    <shape type="sphere">
+        <point name="center" x="{x}" y="{y}" z="{z}"/><float name="radius" value="{r}"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+        <emitter type="area"><rgb name="radiance" value="{l}, {l}, {l}"/></emitter>
+    </shape>""" for (x, y, z), r, l in VEACH_LIGHTS)
+    o, t, u = (", ".join(str(v) for v in c[k]) for k in ("origin", "target", "up"))
+    return f"""<scene version="3.0.0">
+    <integrator type="path">
+        <integer name="max_depth" value="$max_depth"/>
+    </integrator>
+    <sensor type="perspective">
+        <string name="fov_axis" value="y"/>
+        <float name="fov" value="{c['fov']}"/>
+        <transform name="to_world"><lookat origin="{o}" target="{t}" up="{u}"/></transform>
+        <film type="hdrfilm">
+            <integer name="width" value="$size"/>
+            <integer name="height" value="$size"/>
+            <rfilter type="box"/>
+        </film>
+        <sampler type="independent">
+            <integer name="sample_count" value="$spp"/>
+        </sampler>
+    </sensor>
+    <shape type="rectangle">
+        <transform name="to_world">
+            <scale x="20" y="20" z="1"/><rotate x="1" angle="-90"/><translate y="-4"/>
+        </transform>
+        <bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.2"/></bsdf></bsdf>
+    </shape>{plates}{lights}
+</scene>
+"""
+
+
 def mitsuba_runs(xml, runs, variant):
     import mitsuba as mi
     mi.set_variant(variant)
@@ -173,7 +222,7 @@ def main():
     p.add_argument("--size", type=int, default=96)
     p.add_argument("--block", type=int, default=8, help="block edge (pixels) of the test")
     p.add_argument("--variant", default="scalar_rgb", help="Mitsuba variant")
-    p.add_argument("--scenes", default="box,glass,glossy")
+    p.add_argument("--scenes", default="box,glass,glossy,veach")
     args = p.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     # Lossy compression leaves small negative values in the map, which lumis reads as zero: both
@@ -184,8 +233,8 @@ def main():
     write_exr(args.work / "studio.exr", np.maximum(studio, 0.0))
     ok = True
     for name in args.scenes.split(","):
-        template = GLOSSY if name == "glossy" else BOX
-        content = {"box": BLOCKS, "glass": GLASS, "glossy": ""}[name]
+        template = {"glossy": GLOSSY, "veach": veach_template()}.get(name, BOX)
+        content = {"box": BLOCKS, "glass": GLASS, "glossy": "", "veach": ""}[name]
         for depth in [3, -1]:
             text = (template.replace("$content", content).replace("$max_depth", str(depth))
                     .replace("$size", str(args.size)).replace("$spp", str(args.spp)))

@@ -164,6 +164,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     let mut shape_bsdf = Vec::new();
     let mut shape_emitter = Vec::new();
     let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
+    let mut emitter_weights = Vec::new();
     let mut emitting_triangles = 0u64;
     for (i, shape) in desc.shapes.iter().enumerate() {
         let label = format!("shapes[{i}] ({})", shape.kind);
@@ -231,10 +232,11 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             shape_emitter.push(match &shape.emitter {
                 None => None,
                 Some(spec) => {
-                    let emitter =
+                    let (emitter, weight) =
                         build_emitter(&format!("{label}.emitter"), spec, Some(&geometry), base)
                             .map_err(err)?;
                     emitters.push(emitter);
+                    emitter_weights.push(weight);
                     Some(emitters.len() as u32 - 1)
                 }
             });
@@ -244,7 +246,8 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     }
     let mut environment = None;
     for (i, spec) in desc.emitters.iter().enumerate() {
-        let emitter = build_emitter(&format!("emitters[{i}]"), spec, None, base).map_err(err)?;
+        let (emitter, weight) =
+            build_emitter(&format!("emitters[{i}]"), spec, None, base).map_err(err)?;
         if emitter.is_environment() {
             if environment.is_some() {
                 return Err(err(format!(
@@ -254,6 +257,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             environment = Some(emitters.len());
         }
         emitters.push(emitter);
+        emitter_weights.push(weight);
     }
 
     // Lights of glTF files (`lights: true`), after the `emitters` list.
@@ -274,7 +278,9 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
             })?;
         for (name, spec) in lights {
             let label = format!("shapes[{i}] {name}");
-            emitters.push(build_emitter(&label, &spec, None, base).map_err(err)?);
+            let (emitter, weight) = build_emitter(&label, &spec, None, base).map_err(err)?;
+            emitters.push(emitter);
+            emitter_weights.push(weight);
         }
     }
 
@@ -312,6 +318,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
         bsdfs,
         bsdf_flags,
         emitters,
+        emitter_weights,
         environment,
         shape_bsdf,
         shape_emitter,
@@ -368,25 +375,52 @@ fn plugin_params(
     .map_err(|e| e.to_string())
 }
 
+/// A parameter of every emitter (Mitsuba's): how often `path` with one light per vertex
+/// chooses it, relative to the others' (default 1).
+pub const SAMPLING_WEIGHT: &str = "sampling_weight";
+/// The largest `sampling_weight`.
+const MAX_SAMPLING_WEIGHT: f64 = 1e12;
+
+/// The emitter `spec` describes, and its `sampling_weight`.
 fn build_emitter(
     label: &str,
     spec: &PluginSpec,
     shape: Option<&ShapeGeometry>,
     base: &Path,
-) -> Result<Arc<dyn Emitter>, String> {
+) -> Result<(Arc<dyn Emitter>, f32), String> {
     let plugin =
         registry::find::<EmitterPlugin>(&spec.kind).map_err(|e| format!("{label}: {e}"))?;
-    let mut params = Params::new(
-        format!("{label} ({})", spec.kind),
-        plugin.params,
-        spec.params.clone(),
-    )
-    .map_err(|e| e.to_string())?
-    .with_base_dir(base);
+    let mut values = spec.params.clone();
+    let weight = match values.remove(SAMPLING_WEIGHT) {
+        None => 1.0,
+        Some(value) => {
+            let number = match &value {
+                Value::Number(n) => Some(n.into_f64()),
+                _ => None,
+            };
+            // Not 0: `path` finds a light only through the estimate of the light it chose (a
+            // BSDF sample counts the light it was drawn for), so a light never chosen would
+            // be missing from the image.
+            number
+                .filter(|w| *w > 0.0 && *w <= MAX_SAMPLING_WEIGHT)
+                .ok_or_else(|| {
+                    format!(
+                        "{label} ({}): `{SAMPLING_WEIGHT}` must be a number in (0, 1e12] (a \
+                         light of weight 0 would never be chosen, and its light would be \
+                         missing), found {}",
+                        spec.kind,
+                        ron::to_string(&value).unwrap_or_default()
+                    )
+                })? as f32
+        }
+    };
+    let mut params = Params::new(format!("{label} ({})", spec.kind), plugin.params, values)
+        .map_err(|e| e.to_string())?
+        .with_base_dir(base);
     let emitter = (plugin.create)(&mut params, &EmitterContext { shape })
         .map_err(|e| format!("{label}: {e}"))?;
     params.finish().map_err(|e| e.to_string())?;
-    Ok(emitter)
+    Ok((emitter, weight))
 }
 
 enum ShapeError {

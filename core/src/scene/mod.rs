@@ -49,6 +49,9 @@ pub struct Scene {
     pub bsdf_flags: Vec<BsdfFlags>,
     /// Every light: area emitters of shapes in shape order, then the scene's `emitters` list.
     pub emitters: Vec<Arc<dyn Emitter>>,
+    /// Per light: its `sampling_weight` (1 unless the scene says otherwise), how often `path`
+    /// with one light per vertex chooses it relative to the others (positive).
+    pub emitter_weights: Vec<f32>,
     /// Index of the environment emitter, which rays leaving the scene reach.
     pub environment: Option<usize>,
     /// Per shape: index of the BSDF seen from its front and from its back (`[front, back]`,

@@ -126,6 +126,15 @@ fn light_density_toward(
     emitter.pdf_direction(reference, ray.direction, Some(&hit))
 }
 
+/// The density with which sampling non-delta light `light` from `sp` draws the direction of
+/// `ray`, a ray leaving `sp` drawn otherwise (occluders ignored, as [`light_density_toward`]).
+pub(crate) fn light_density_of(scene: &Scene, sp: &ShadingPoint, light: usize, ray: &Ray) -> f32 {
+    let reference = ReferencePoint {
+        position: sp.hit.position,
+    };
+    light_density_toward(scene, light, scene.emitter_shape[light], &reference, ray)
+}
+
 /// What a BSDF-sampled ray finds of the light it was drawn for.
 enum Reached {
     /// Nothing: it is blocked, or passes the light by.

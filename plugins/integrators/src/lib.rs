@@ -37,7 +37,8 @@
 //! - [`allocation`], [`fixed_alpha`]: the allocation traits and the one-phase allocation;
 //! - [`mis`]: the integrator and the family's parameters;
 //! - [`moments`], [`second_order`], [`pilot`], [`alpha_family`]: what the α methods share;
-//! - [`one_point`]: one shading point's variance as a function of α, exactly (for tests).
+//! - [`one_point`]: one shading point's variance as a function of α, exactly (for tests);
+//! - [`vertex_cache`]: the world-space cache of α at `path`'s vertices past the first.
 //!
 //! A new method is one file (its trait impls and its registration) and one `pub mod` line
 //! (docs/writing-a-plugin.md).
@@ -57,6 +58,7 @@ pub mod pilot;
 pub mod sampling;
 pub mod second_order;
 pub mod shading_point;
+pub mod vertex_cache;
 pub mod weighting;
 
 pub mod alpha;

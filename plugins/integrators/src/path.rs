@@ -19,8 +19,9 @@
 //! - `hide_emitters` (bool, default false): emitters the camera sees directly are hidden, as
 //!   Mitsuba does: its rays pass through area emitters, and the environment behind is black.
 //! - `lights` (choice, default "all"): "all" estimates every light at every vertex, as the
-//!   direct integrators do; "one" one light per vertex, chosen uniformly (Mitsuba's), its
-//!   estimate divided by the probability of choosing it.
+//!   direct integrators do; "one" one light per vertex, chosen as Mitsuba does, with
+//!   probability in proportion to its emitter's `sampling_weight` (a parameter of every
+//!   emitter, default 1: uniformly), its estimate divided by the probability of choosing it.
 //! - `samples` (integer, default 2, in [1, 1048576]): N, samples per light at the first vertex.
 //! - `deep_samples` (integer, default 2, in [1, 1048576]): N per light at the vertices past the
 //!   first, split n_B = ⌊α N + ½⌋ with α = `fixed` for the fixed allocation, ½ for the others.
@@ -39,19 +40,35 @@
 //!   `cost_ratio` (float, default 0); `pilot_samples` (integer, default 0);
 //!   `radius` (integer, default 2); `objective` (choice, default "exact");
 //!   `block` (integer, default 16).
+//! - `deep_allocation` (choice, default "split"): the vertices past the first that reflect only
+//!   and are not a Dirac lobe alone: "split" estimates each light as above (N =
+//!   `deep_samples`, `weighting`); the others draw one continuation from the paper's one-sample
+//!   mixture q_α = α p_B + (1 − α) p_L of BSDF sampling and sampling one light J chosen
+//!   uniformly among the non-delta lights, the path going on along whichever technique drew it
+//!   with weight f / q_α (the one-sample balance heuristic), the emission it meets counted at the
+//!   vertex (delta lights keep their own sample each, by `lights`). α is `fixed` for "mixture";
+//!   read from a world-space cache ([`crate::vertex_cache`]) filled by the render's earlier
+//!   passes for "learned" (the α of least estimated second moment) and "guiding_fraction"
+//!   (practical path guiding's learned BSDF-sampling fraction, Müller et al.); ½ in the first
+//!   pass, and in a render of one pass.
+//! - `cache_resolution` (integer, default 32, in [1, 4096]): cells of the cache along the
+//!   scene's longest side (with "learned" and "guiding_fraction").
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples" (of the first
 //!   vertex, as the direct integrators write them) and "depth_samples" (the samples drawn at
 //!   each vertex depth, channels d1 … d7 and d8plus, summed over the pixel's camera samples).
 //!
-//! Why one file of over 600 lines: one plugin, one file: the path loop, its per-vertex estimates,
-//! roulette and the depth AOV, with its tests.
+//! Why one file of over 600 lines: one plugin, one file: the path loop, its per-vertex estimates
+//! (the split and the one-sample mixture), light choice, roulette and the depth AOV, with its
+//! tests; the mixture's cache is [`crate::vertex_cache`].
 
 use crate::allocation::{Method, Weighted};
 use crate::alpha_family::{
     ALPHA_SAMPLES_SPEC, CLAMP_SPEC, MODE_SPEC, VARIANCE_SPEC, pilot_samples_spec,
 };
 use crate::aovs::{self, AovRequest, LightTally};
-use crate::estimator::{ContinuationSlot, draw_continuation, emitted, estimate_delta_light};
+use crate::estimator::{
+    ContinuationSlot, draw_continuation, emitted, estimate_delta_light, light_density_of,
+};
 use crate::fixed_alpha::FixedAlpha;
 use crate::max::Maximum;
 use crate::mis::{SAMPLES_SPEC, read_samples};
@@ -59,17 +76,21 @@ use crate::optimal_mis::DirectOptimal;
 use crate::power::Power;
 use crate::sampling::{LightSampling, PhaseBuffers};
 use crate::shading_point::ShadingPoint;
+use crate::vertex_cache::{ALPHA_MAX, ALPHA_MIN, Learning, MixtureSample, VertexCache};
 use crate::weighting::{Balance, PerSample, Weighting};
 use crate::{
     alpha, balance, cost_alpha, cutoff, exact_alpha, max, optimal_mis, pooled_alpha, power,
     variance_aware,
 };
+use lumis_core::emitter::ReferencePoint;
 use lumis_core::geometry::{Intersection, Ray};
 use lumis_core::integrator::{CameraSample, Integrator};
-use lumis_core::math::Rgb;
+use lumis_core::math::{Rgb, luminance};
 use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
+use lumis_core::passes::PassContext;
 use lumis_core::registry::IntegratorPlugin;
+use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
 
 /// The plugin's name in scene files, and its parameters' names.
@@ -84,6 +105,12 @@ pub const DEEP_SAMPLES: &str = "deep_samples";
 pub const WEIGHTING: &str = "weighting";
 pub const ALLOCATION: &str = "allocation";
 pub const FIXED: &str = "fixed";
+pub const DEEP_ALLOCATION: &str = "deep_allocation";
+pub const SPLIT: &str = "split";
+pub const MIXTURE: &str = "mixture";
+pub const LEARNED: &str = "learned";
+pub const GUIDING_FRACTION: &str = "guiding_fraction";
+pub const CACHE_RESOLUTION: &str = "cache_resolution";
 /// The AOV layer of samples per vertex depth.
 pub const DEPTH_SAMPLES: &str = "depth_samples";
 
@@ -98,6 +125,8 @@ const RR_MAX_PROBABILITY: f32 = 0.95;
 const DEPTH_CHANNELS: usize = 8;
 /// Most emitters hidden along one camera ray ([`HIDE_EMITTERS`]): past them, black.
 const MAX_HIDDEN: u32 = 64;
+/// Mixture vertices of one camera sample whose statistics reach the cache: the first ones.
+const MAX_RECORDED: usize = 16;
 
 /// The layers `aovs` may ask for: the direct integrators' and [`DEPTH_SAMPLES`].
 const AOV_NAMES: &[&str] = &[
@@ -158,7 +187,7 @@ static PARAMS: &[ParamSpec] = &[
             default: ALL,
         },
         unit: "",
-        description: "all: every light at every vertex (as the direct integrators); one: one light per vertex, chosen uniformly (as Mitsuba)",
+        description: "all: every light at every vertex (as the direct integrators); one: one light per vertex, chosen in proportion to the emitters' sampling_weight (as Mitsuba)",
     },
     ParamSpec {
         description: "N: samples per light at the first vertex",
@@ -268,6 +297,25 @@ static PARAMS: &[ParamSpec] = &[
         description: "variance_aware's blocks",
     },
     ParamSpec {
+        name: DEEP_ALLOCATION,
+        kind: ParamKind::Choice {
+            options: &[SPLIT, MIXTURE, LEARNED, GUIDING_FRACTION],
+            default: SPLIT,
+        },
+        unit: "",
+        description: "past the first vertex: split (each light, N = deep_samples) or one continuation from the mixture α p_B + (1 − α) p_L, α = fixed (mixture), learned from earlier passes in a world-space cache (learned: least second moment; guiding_fraction: Müller et al.'s BSDF-sampling fraction)",
+    },
+    ParamSpec {
+        name: CACHE_RESOLUTION,
+        kind: ParamKind::Int {
+            default: Some(32),
+            min: 1,
+            max: 4096,
+        },
+        unit: "cells",
+        description: "cells of the learned α's cache along the scene's longest side",
+    },
+    ParamSpec {
         name: crate::mis::AOVS,
         kind: ParamKind::List { options: AOV_NAMES },
         unit: "",
@@ -307,10 +355,36 @@ impl PathAovs {
     }
 }
 
+/// How vertices past the first are estimated ([`DEEP_ALLOCATION`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Deep {
+    Split,
+    /// The one-sample mixture at this α.
+    Mixture(f64),
+    /// The one-sample mixture, α from the cache.
+    Learned(Learning),
+}
+
+/// The lights a mixture vertex treats apart, found in `preprocess`.
+#[derive(Default)]
+struct LightLists {
+    /// Non-delta lights: J is chosen among them.
+    mixed: Vec<usize>,
+    delta: Vec<usize>,
+}
+
 /// The path tracer: the first vertex's method, the deeper vertices', and the path's rules.
 pub struct Path {
     first: Box<dyn Method>,
     deeper: Box<dyn Method>,
+    deep: Deep,
+    cache_resolution: u32,
+    /// With a learned α: its cache, made in `preprocess`.
+    cache: Option<VertexCache>,
+    light_lists: LightLists,
+    /// The lights' `sampling_weight`s, cumulated, where they are not all equal (empty:
+    /// `lights: one` chooses uniformly).
+    light_cdf: Vec<f32>,
     /// Vertices at which lights are estimated are those below it (Mitsuba's `max_depth`;
     /// `u32::MAX` unbounded).
     max_depth: u32,
@@ -405,6 +479,21 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         },
         weighting_named(weighting, threshold),
     ));
+    let deep = match params.choice(DEEP_ALLOCATION)? {
+        MIXTURE => Deep::Mixture(
+            params
+                .float(FIXED)?
+                .clamp(ALPHA_MIN as f32, ALPHA_MAX as f32) as f64,
+        ),
+        LEARNED => Deep::Learned(Learning::SecondMoment),
+        GUIDING_FRACTION => Deep::Learned(Learning::GuidingFraction),
+        _ => Deep::Split,
+    };
+    let cache_resolution = if matches!(deep, Deep::Learned(_)) {
+        params.int(CACHE_RESOLUTION)? as u32
+    } else {
+        0
+    };
     let names = params.list(crate::mis::AOVS)?;
     let aovs = PathAovs {
         first: AovRequest::from_names(&names),
@@ -413,6 +502,11 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     Ok(Box::new(Path {
         first,
         deeper,
+        deep,
+        cache_resolution,
+        cache: None,
+        light_lists: LightLists::default(),
+        light_cdf: Vec::new(),
         max_depth,
         rr_depth,
         hide_emitters,
@@ -502,7 +596,7 @@ impl Path {
             }
             Lights::One if lights > 0 => {
                 let u = sample.sampler.next_1d();
-                let light = ((u * lights as f32) as usize).min(lights - 1);
+                let (light, inverse_probability) = choose_light(&self.light_cdf, u, lights);
                 let value = self.estimate_light(
                     scene,
                     sp,
@@ -513,7 +607,7 @@ impl Path {
                     slot,
                     sums,
                 );
-                path.add(value * lights as f32);
+                path.add(value * inverse_probability);
             }
             Lights::One => {}
         }
@@ -565,6 +659,264 @@ impl Path {
     }
 }
 
+/// Where a mixture vertex sends its path: the weight its throughput takes (a reflection: no
+/// relative index), and the ray with the closest surface it meets (`None`: it leaves).
+struct Step {
+    weight: Rgb,
+    ray: Ray,
+    hit: Option<Intersection>,
+}
+
+/// A mixture vertex's sample, waiting for the radiance its path brings back.
+#[derive(Clone, Copy, Default)]
+struct Pending {
+    sample: MixtureSample,
+    /// The path's radiance before the sample's continuation, and its throughput there.
+    radiance: Rgb,
+    throughput: Rgb,
+}
+
+/// The mixture samples of one camera sample's path, the first [`MAX_RECORDED`].
+#[derive(Default)]
+struct Recording {
+    pending: [Pending; MAX_RECORDED],
+    count: usize,
+}
+
+impl Recording {
+    #[inline(always)]
+    fn push(&mut self, vertex: Pending) {
+        if let Some(slot) = self.pending.get_mut(self.count) {
+            *slot = vertex;
+            self.count += 1;
+        }
+    }
+}
+
+impl Path {
+    /// Whether vertex `depth` at `sp` draws from the one-sample mixture: past the first
+    /// vertex, with a mixture asked for, a surface that only reflects and not only through a
+    /// Dirac lobe (light sampling could reach it), and a non-delta light to sample.
+    fn mixes_at(&self, depth: u32, sp: &ShadingPoint) -> bool {
+        depth > 1
+            && self.deep != Deep::Split
+            && !sp.flags.transmission()
+            && !sp.is_pure_delta()
+            && !self.light_lists.mixed.is_empty()
+    }
+
+    /// A mixture vertex: delta lights sampled as `lights` says, then one direction from
+    /// q_α = α p_B + (1 − α) p_J for a light J chosen uniformly among the non-delta ones, traced
+    /// to its closest surface; `None` where the sample is black (the path ends). The sample's
+    /// densities are left in `pending` for the cache.
+    fn mixture_vertex(
+        &self,
+        scene: &Scene,
+        sp: &ShadingPoint,
+        sample: &mut CameraSample,
+        path: &mut PathState,
+        pending: &mut Pending,
+    ) -> Option<Step> {
+        let delta = &self.light_lists.delta;
+        match self.lights {
+            Lights::All => {
+                for &light in delta {
+                    path.add(estimate_delta_light(scene, sp, light, &mut sample.sampler));
+                }
+            }
+            Lights::One if !delta.is_empty() => {
+                let u = sample.sampler.next_1d();
+                let light = delta[((u * delta.len() as f32) as usize).min(delta.len() - 1)];
+                let value = estimate_delta_light(scene, sp, light, &mut sample.sampler);
+                path.add(value * delta.len() as f32);
+            }
+            Lights::One => {}
+        }
+        let mixed = &self.light_lists.mixed;
+        let u = sample.sampler.next_1d();
+        let light = mixed[((u * mixed.len() as f32) as usize).min(mixed.len() - 1)];
+        let alpha = match (self.deep, &self.cache) {
+            (Deep::Mixture(alpha), _) => alpha,
+            (_, Some(cache)) => {
+                pending.sample.slot = cache.slot(sp.hit.position, sp.normal);
+                cache.alpha(pending.sample.slot)
+            }
+            _ => 0.5,
+        };
+        pending.sample.alpha = alpha;
+        pending.radiance = path.radiance;
+        pending.throughput = path.throughput;
+        let direction = sample_mixture(scene, sp, light, alpha, &mut sample.sampler)?;
+        // A Dirac lobe's sample has no density to compare: it is not recorded.
+        pending.sample.p_bsdf = if direction.delta {
+            0.0
+        } else {
+            direction.p_bsdf as f64
+        };
+        pending.sample.p_light = direction.p_light as f64;
+        let (weight, ray) = (direction.weight, direction.ray);
+        let hit = scene
+            .geometry
+            .first_hit_leaving(&ray, &sp.hit)
+            .map(|first| scene.geometry.surface(&ray, &first));
+        Some(Step { weight, ray, hit })
+    }
+
+    /// Gives the cache what the path's mixture vertices saw: each one's estimate g/q, the
+    /// radiance found past it divided by the throughput it was reached with.
+    fn record(&self, pending: &mut [Pending], radiance: Rgb) {
+        let Some(cache) = &self.cache else { return };
+        for p in pending.iter_mut().filter(|p| p.sample.p_bsdf > 0.0) {
+            let found = radiance - p.radiance;
+            let per = |found: f32, throughput: f32| {
+                if throughput > 0.0 {
+                    found / throughput
+                } else {
+                    0.0
+                }
+            };
+            let estimate = Rgb::new(
+                per(found.x, p.throughput.x),
+                per(found.y, p.throughput.y),
+                per(found.z, p.throughput.z),
+            );
+            p.sample.y = luminance(estimate) as f64;
+            cache.record(&p.sample);
+        }
+    }
+}
+
+impl Path {
+    /// Whether the path goes on past vertex `depth` with its new throughput: not if that is
+    /// not a positive finite number, nor if Russian roulette ends it (from `rr_depth` on; the
+    /// throughput of a path that goes on is divided by its probability of going on).
+    #[inline(always)]
+    fn roulette(&self, depth: u32, path: &mut PathState, sample: &mut CameraSample) -> bool {
+        let largest = path.throughput.max_element();
+        if !(largest > 0.0 && largest.is_finite()) {
+            return false;
+        }
+        if depth >= self.rr_depth {
+            let go_on = (largest * path.eta * path.eta).min(RR_MAX_PROBABILITY);
+            if sample.sampler.next_1d() >= go_on {
+                return false;
+            }
+            path.throughput /= go_on;
+        }
+        true
+    }
+}
+
+/// One direction drawn from the one-sample mixture at a shading point ([`sample_mixture`]).
+pub struct MixtureDirection {
+    /// The ray leaving the point along it.
+    pub ray: Ray,
+    /// f |cos θ| / q_α (for a Dirac lobe of the BSDF, its sample's weight over α).
+    pub weight: Rgb,
+    /// Its densities under BSDF sampling and under light J's sampling, in solid angle.
+    pub p_bsdf: f32,
+    pub p_light: f32,
+    /// Drawn from a Dirac lobe of the BSDF (only BSDF sampling draws it).
+    pub delta: bool,
+}
+
+/// Draws one direction at `sp`, a point whose BSDF only reflects, from the one-sample mixture
+/// q_α = α p_B + (1 − α) p_J of BSDF sampling and non-delta light `light`'s sampling; `None`
+/// where the drawn direction carries nothing (no direction drawn, or one the surface does not
+/// scatter into). Its density over the directions it returns is [`mixture_density`].
+pub fn sample_mixture(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    alpha: f64,
+    sampler: &mut Sampler,
+) -> Option<MixtureDirection> {
+    let mixture =
+        |p_bsdf: f32, p_light: f32| (alpha * p_bsdf as f64 + (1.0 - alpha) * p_light as f64) as f32;
+    if (sampler.next_1d() as f64) < alpha {
+        let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
+        let s = sp.bsdf.sample(&sp.ctx, sp.wo, u_lobe, u)?;
+        let wi = sp.frame.to_world(s.wi);
+        if !sp.leaves_toward::<false>(wi, s.wi) {
+            return None;
+        }
+        let ray = sp.origin.ray(&sp.hit, wi);
+        if s.delta {
+            // Only BSDF sampling draws a Dirac lobe: chosen with probability α.
+            return Some(MixtureDirection {
+                ray,
+                weight: s.weight / alpha as f32,
+                p_bsdf: s.pdf,
+                p_light: 0.0,
+                delta: true,
+            });
+        }
+        let p_light = light_density_of(scene, sp, light, &ray);
+        Some(MixtureDirection {
+            ray,
+            weight: s.weight * (s.pdf / mixture(s.pdf, p_light)),
+            p_bsdf: s.pdf,
+            p_light,
+            delta: false,
+        })
+    } else {
+        let reference = ReferencePoint {
+            position: sp.hit.position,
+        };
+        let ls = scene.emitters[light].sample_direction(&reference, sampler.next_2d())?;
+        let wi = sp.frame.to_local(ls.wi);
+        if !sp.scatters_from_sample::<false>(&ls, wi.z) {
+            return None;
+        }
+        let (f, p_bsdf) = sp.bsdf.eval_pdf(&sp.ctx, sp.wo, wi);
+        if f == Rgb::ZERO {
+            return None;
+        }
+        Some(MixtureDirection {
+            ray: sp.origin.ray(&sp.hit, ls.wi),
+            weight: f / mixture(p_bsdf, ls.pdf),
+            p_bsdf,
+            p_light: ls.pdf,
+            delta: false,
+        })
+    }
+}
+
+/// q_α toward world direction `wi` at `sp` for light `light`: the density of
+/// [`sample_mixture`]'s non-Dirac directions (for its χ² test).
+pub fn mixture_density(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    light: usize,
+    alpha: f64,
+    wi: glam::Vec3,
+) -> f64 {
+    let p_bsdf = sp.bsdf.pdf(&sp.ctx, sp.wo, sp.frame.to_local(wi)) as f64;
+    let p_light = light_density_of(scene, sp, light, &sp.origin.ray(&sp.hit, wi)) as f64;
+    alpha * p_bsdf + (1.0 - alpha) * p_light
+}
+
+/// The light `lights: one` chooses with `u` among `lights` lights, and 1 / its probability:
+/// uniformly where `cdf` is empty, else in proportion to the lights' `sampling_weight`s
+/// (Mitsuba's), `cdf` their running sums.
+#[inline(always)]
+fn choose_light(cdf: &[f32], u: f32, lights: usize) -> (usize, f32) {
+    let Some(&total) = cdf.last() else {
+        return (
+            ((u * lights as f32) as usize).min(lights - 1),
+            lights as f32,
+        );
+    };
+    let target = u * total;
+    // The first light whose interval holds the target: never one of weight 0, even where
+    // rounding puts the target at the total.
+    let light = cdf
+        .partition_point(|&c| c <= target)
+        .min(cdf.partition_point(|&c| c < total));
+    let weight = cdf[light] - light.checked_sub(1).map_or(0.0, |l| cdf[l]);
+    (light, total / weight)
+}
+
 /// The `depth_samples` channel of vertex `depth`.
 fn depth_channel(depth: u32) -> usize {
     (depth as usize).min(DEPTH_CHANNELS) - 1
@@ -593,6 +945,40 @@ impl Integrator for Path {
     fn preprocess(&mut self, scene: &Scene) {
         self.first.preprocess(scene);
         self.deeper.preprocess(scene);
+        let weights = &scene.emitter_weights;
+        self.light_cdf = if weights.iter().all(|&w| w == weights[0]) {
+            Vec::new()
+        } else {
+            weights
+                .iter()
+                .scan(0.0f32, |sum, &w| {
+                    *sum += w;
+                    Some(*sum)
+                })
+                .collect()
+        };
+        if self.deep != Deep::Split {
+            let (delta, mixed) =
+                (0..scene.emitters.len()).partition(|&e| scene.emitters[e].is_delta());
+            self.light_lists = LightLists { mixed, delta };
+        }
+        if let Deep::Learned(learning) = self.deep {
+            self.cache = Some(VertexCache::new(
+                scene,
+                self.cache_resolution,
+                learning,
+                0.5,
+            ));
+        }
+    }
+
+    fn begin_pass(&mut self, _scene: &Scene, pass: &PassContext<'_>) {
+        // Pass k reads what passes < k added.
+        if let Some(cache) = &mut self.cache
+            && pass.index > 0
+        {
+            cache.freeze();
+        }
     }
 
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
@@ -618,6 +1004,8 @@ impl Integrator for Path {
             throughput: Rgb::ONE,
             eta: 1.0,
         };
+        // Only with a cache: without, nothing is written (a `None` is its tag alone).
+        let mut recording = self.cache.as_ref().map(|_| Recording::default());
         PhaseBuffers::with_thread_local(|buffers| {
             for depth in 1..MAX_VERTICES {
                 // Mitsuba's vertex d − 1 samples lights when d < max_depth.
@@ -627,6 +1015,30 @@ impl Integrator for Path {
                 let sp = ShadingPoint::new(scene, hit, -ray.direction);
                 // The next vertex is worth reaching if it will sample lights.
                 let goes_on = depth + 1 < self.max_depth && depth + 1 < MAX_VERTICES;
+                if self.mixes_at(depth, &sp) {
+                    if self.aovs.depth_samples {
+                        sums[depth_channel(depth)] += 1.0;
+                    }
+                    let mut vertex = Pending::default();
+                    let step = self.mixture_vertex(scene, &sp, sample, &mut path, &mut vertex);
+                    let Some(step) = step else { break };
+                    path.throughput *= step.weight;
+                    if let Some(recording) = &mut recording {
+                        recording.push(vertex);
+                    }
+                    // What the direction meets is the vertex's light estimate.
+                    let Some(next) = step.hit else {
+                        path.add(scene.environment_radiance(step.ray.direction));
+                        break;
+                    };
+                    path.add(emitted(scene, &next, step.ray.direction));
+                    if !goes_on || !self.roulette(depth, &mut path, sample) {
+                        break;
+                    }
+                    hit = next;
+                    ray = step.ray;
+                    continue;
+                }
                 let mut slot = if goes_on {
                     ContinuationSlot::Wanted
                 } else {
@@ -652,16 +1064,8 @@ impl Integrator for Path {
                 };
                 path.throughput *= continuation.sample.weight;
                 path.eta *= continuation.sample.eta;
-                let largest = path.throughput.max_element();
-                if !(largest > 0.0 && largest.is_finite()) {
+                if !self.roulette(depth, &mut path, sample) {
                     break;
-                }
-                if depth >= self.rr_depth {
-                    let go_on = (largest * path.eta * path.eta).min(RR_MAX_PROBABILITY);
-                    if sample.sampler.next_1d() >= go_on {
-                        break;
-                    }
-                    path.throughput /= go_on;
                 }
                 let Some(next) = continuation.hit else {
                     break;
@@ -670,6 +1074,9 @@ impl Integrator for Path {
                 ray = continuation.ray;
             }
         });
+        if let Some(recording) = &mut recording {
+            self.record(&mut recording.pending[..recording.count], path.radiance);
+        }
         path.radiance
     }
 
@@ -690,5 +1097,41 @@ inventory::submit! {
         description: "path tracing with the MIS family's per-light estimator (any weighting, any first-vertex allocation) at every vertex",
         params: PARAMS,
         create,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::choose_light;
+
+    /// With `sampling_weight`s, each light is chosen with probability w_j / Σ w (over a
+    /// stratified grid of u, exactly up to one stratum), never one of weight 0, and its estimate
+    /// is scaled by Σ w / w_j; without, uniformly (the old rule).
+    #[test]
+    fn lights_are_chosen_in_proportion_to_their_sampling_weight() {
+        let weights = [1.0f32, 0.0, 4.0, 0.5, 0.0];
+        let cdf: Vec<f32> = weights
+            .iter()
+            .scan(0.0, |s, &w| {
+                *s += w;
+                Some(*s)
+            })
+            .collect();
+        let total = cdf[cdf.len() - 1];
+        let n = 100_000;
+        let mut counts = [0usize; 5];
+        for i in 0..n {
+            let u = (i as f32 + 0.5) / n as f32;
+            let (light, inverse) = choose_light(&cdf, u, weights.len());
+            assert!(weights[light] > 0.0, "u {u}: light {light} of weight 0");
+            assert!((inverse - total / weights[light]).abs() <= 1e-5 * inverse);
+            counts[light] += 1;
+        }
+        for (count, w) in counts.iter().zip(weights) {
+            let expected = w / total * n as f32;
+            assert!((*count as f32 - expected).abs() <= 2.0, "{counts:?}");
+        }
+        assert_eq!(choose_light(&cdf, 1.0 - f32::EPSILON / 2.0, 5).0, 3);
+        assert_eq!(choose_light(&[], 0.99, 4), (3, 4.0));
     }
 }

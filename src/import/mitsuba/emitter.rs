@@ -7,6 +7,7 @@ use super::Converter;
 use super::properties::{Properties, Value, line};
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use lumis_core::scene::description::PluginSpec;
+use lumis_core::scene::load::SAMPLING_WEIGHT;
 use lumis_emitters::{SCALE, area, constant, directional, envmap, point, spot};
 use roxmltree::Node;
 
@@ -20,6 +21,15 @@ fn rotation_of(m: DMat4) -> Option<DMat3> {
     let r = DMat3::from_mat4(m);
     let product = r.transpose() * r;
     (product.abs_diff_eq(DMat3::IDENTITY, 1e-5) && r.determinant() > 0.0).then_some(r)
+}
+
+/// `spec` with Mitsuba's `sampling_weight`, if the emitter gave one (lumis reads it on every
+/// emitter; the scene loader checks its value).
+fn with_sampling_weight(spec: PluginSpec, weight: Option<(f64, u32)>) -> PluginSpec {
+    match weight {
+        Some((w, _)) => spec.float(SAMPLING_WEIGHT, w as f32),
+        None => spec,
+    }
 }
 
 impl Converter {
@@ -41,10 +51,10 @@ impl Converter {
         let Some(radiance) = p.emission("radiance", 1.0)? else {
             return Ok(None);
         };
+        let weight = p.number(SAMPLING_WEIGHT)?;
         self.finish(p, "the area emitter");
-        Ok(Some(
-            PluginSpec::new(area::NAME).rgb(area::RADIANCE, f32s(radiance)),
-        ))
+        let spec = PluginSpec::new(area::NAME).rgb(area::RADIANCE, f32s(radiance));
+        Ok(Some(with_sampling_weight(spec, weight)))
     }
 
     /// An emitter of the scene (not on a shape).
@@ -69,6 +79,7 @@ impl Converter {
         self.objects_not_converted(&p.objects, "an emitter", false);
         let to_world = p.transform("to_world")?;
         let scale = p.number("scale")?.map_or(1.0, |(s, _)| s) as f32;
+        let weight = p.number(SAMPLING_WEIGHT)?;
         let emitter = match p.kind.as_str() {
             "envmap" => self.envmap(&mut p, to_world)?,
             "constant" => self.constant(&mut p)?,
@@ -84,7 +95,8 @@ impl Converter {
         let Some(emitter) = emitter else {
             return Ok(());
         };
-        self.emitters.push(emitter.float(SCALE.name, scale));
+        let emitter = emitter.float(SCALE.name, scale);
+        self.emitters.push(with_sampling_weight(emitter, weight));
         let owner = format!("the `{}` emitter", p.kind);
         self.finish(p, &owner);
         Ok(())

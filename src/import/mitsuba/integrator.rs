@@ -125,8 +125,7 @@ impl Converter {
             "`path` becomes lumis `path` with lights \"one\", samples 2 and deep_samples 2, \
              weighting \"power\": Mitsuba's estimator at every vertex (one light chosen uniformly, \
              one light and one BSDF sample, the power heuristic), except that a BSDF sample counts \
-             the light it was drawn for only (the same mean); emitters' `sampling_weight` is not \
-             read",
+             the light it was drawn for only (the same mean)",
         );
         self.integrator = Some(spec);
     }
