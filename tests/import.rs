@@ -1171,3 +1171,130 @@ fn shapes_take_area_emitters_defined_after_them() {
     let emitter = c.description.shapes[0].emitter.as_ref().unwrap();
     assert_eq!(emitter.kind, "area");
 }
+
+/// Mitsuba's `direct` with one technique becomes lumis' `light` or `bsdf` with its sample count.
+/// Its emitter samples of a delta light are each weighted 1, not 1/`emitter_samples`
+/// (direct.cpp): the delta lights' `scale` is multiplied by `emitter_samples` (they are left out
+/// at 0, as BSDF samples never reach them), with a note; area and env lights are unchanged.
+#[test]
+fn direct_converts_each_technique_and_mitsubas_delta_light_weight() {
+    let scene = |integrator: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="direct">{integrator}</integrator>
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="0"/><rgb name="intensity" value="3"/><float name="scale" value="2"/></emitter>
+    <emitter type="spot"><rgb name="intensity" value="1"/></emitter>
+</scene>"#
+        )
+    };
+    let convert = |integrator: &str| {
+        let (dir, path) = scene_file("direct.xml", &scene(integrator));
+        let c = convert_at(&path);
+        drop(dir);
+        c
+    };
+    let scales = |c: &lumis::import::Conversion| -> Vec<(String, String)> {
+        c.description
+            .emitters
+            .iter()
+            .map(|e| (e.kind.clone(), ron::to_string(&e.params["scale"]).unwrap()))
+            .collect()
+    };
+    let samples = |c: &lumis::import::Conversion| {
+        let i = &c.description.integrator;
+        (
+            i.kind.clone(),
+            ron::to_string(&i.params["samples"]).unwrap(),
+        )
+    };
+
+    let c = convert(
+        r#"<integer name="emitter_samples" value="4"/><integer name="bsdf_samples" value="0"/>"#,
+    )
+    .unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    assert_eq!(samples(&c), ("light".into(), "4".into()));
+    assert_eq!(
+        scales(&c),
+        [
+            ("point".into(), "8.0".into()),
+            ("spot".into(), "4.0".into())
+        ]
+    );
+    let notes = messages(&c.notes);
+    assert!(
+        notes.contains("direct.xml:2: `direct` (4 emitter + 0 BSDF samples"),
+        "{notes}"
+    );
+    assert!(
+        notes.contains("2 point, spot or directional light(s) 4 times as bright"),
+        "{notes}"
+    );
+
+    let c = convert(r#"<integer name="emitter_samples" value="0"/>"#).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    assert_eq!(samples(&c), ("bsdf".into(), "1".into()));
+    assert!(c.description.emitters.is_empty(), "{}", c.ron);
+    assert_eq!(
+        c.description.shapes[0].emitter.as_ref().unwrap().kind,
+        "area"
+    );
+    assert!(messages(&c.notes).contains("never reaches a delta light"));
+
+    // One sample of each: the power heuristic, and every light as the file gives it.
+    let c = convert("").unwrap();
+    assert_eq!(samples(&c), ("power".into(), "2".into()));
+    assert_eq!(
+        scales(&c),
+        [
+            ("point".into(), "2.0".into()),
+            ("spot".into(), "1.0".into())
+        ]
+    );
+    assert!(!messages(&c.notes).contains("times as bright"));
+
+    // What Mitsuba refuses, refused with the line.
+    for (integrator, expect) in [
+        (
+            r#"<integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="0"/>"#,
+            "direct.xml:2: `direct` with no emitter and no BSDF sample",
+        ),
+        (
+            r#"<integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="1"/>"#,
+            "direct.xml:2: `shading_samples` with `emitter_samples` or `bsdf_samples`",
+        ),
+        (
+            r#"<integer name="bsdf_samples" value="-1"/>"#,
+            "direct.xml:2: `bsdf_samples` must be a non-negative integer",
+        ),
+    ] {
+        let c = convert(integrator).unwrap();
+        let problems = messages(&c.problems);
+        assert!(problems.contains(expect), "{problems}");
+    }
+}
+
+/// Mitsuba 3 does not normalise a rotation axis (Dr.Jit's `rotate`): (0, 1, 1) at 90° turns
+/// and stretches, and is converted as Mitsuba reads it, with a note.
+#[test]
+fn a_rotation_about_an_axis_of_other_length_is_read_as_mitsuba_reads_it() {
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="sphere">
+        <transform name="to_world"><rotate y="1" z="1" angle="90"/></transform>
+    </shape>
+</scene>"#;
+    let (_dir, path) = scene_file("axis.xml", xml);
+    let c = convert_at(&path).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    assert!(messages(&c.notes).contains("axis.xml:4: the rotation axis (0, 1, 1) is not of unit"));
+    let text = ron::to_string(&c.description.shapes[0].transform).unwrap();
+    // c I + (1 − c) a aᵀ + s [a]× at c = 0, s = 1, a = (0, 1, 1), row by row (as Mitsuba's
+    // Python `ScalarTransform4f().rotate([0, 1, 1], 90)` gives it).
+    assert!(
+        text.contains("(0.0,-1.0,1.0,0.0,1.0,1.0,1.0,0.0,-1.0,1.0,1.0,0.0,0.0,0.0,0.0,1.0)"),
+        "{text}"
+    );
+}
