@@ -1298,3 +1298,156 @@ fn a_rotation_about_an_axis_of_other_length_is_read_as_mitsuba_reads_it() {
         "{text}"
     );
 }
+
+/// Mitsuba reads `$name` parameters in document order, an included file where its `<include>`
+/// is: a `<default>` in an included file serves what comes after the include (in the including
+/// file too), and a parameter used before the `<default>` that defines it is refused, as
+/// Mitsuba refuses it, unless `-D` gives it.
+#[test]
+fn parameters_defined_later_in_an_include_are_refused_as_mitsuba_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("inc.xml"),
+        r#"<scene version="3.0.0"><default name="fov" value="40"/></scene>"#,
+    )
+    .unwrap();
+    let scene = |first: &str, second: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    {first}
+    {second}
+</scene>"#
+        )
+    };
+    let include = r#"<include filename="inc.xml"/>"#;
+    let sensor = r#"<sensor type="perspective"><float name="fov" value="$fov"/></sensor>"#;
+    std::fs::write(d.join("after.xml"), scene(include, sensor)).unwrap();
+    // `fov` is horizontal in Mitsuba, vertical in lumis: 2·atan(tan(20°) · 576/768) = 30.537°
+    // on Mitsuba's default 768×576 film.
+    let vertical = |c: &lumis::import::Conversion| c.description.camera.fov.unwrap();
+    let c = convert_at(&d.join("after.xml")).unwrap();
+    assert!((vertical(&c) - 30.537).abs() < 1e-3, "{}", vertical(&c));
+
+    std::fs::write(d.join("before.xml"), scene(sensor, include)).unwrap();
+    let e = convert_at(&d.join("before.xml")).unwrap_err();
+    assert!(
+        e.contains("before.xml:2: `$fov` is used before the <default> that defines it"),
+        "{e}"
+    );
+    let given = [("fov".to_string(), "30".to_string())];
+    let c = lumis::import::convert_file(&d.join("before.xml"), d, &given).unwrap();
+    // 2·atan(tan(15°) · 576/768) = 22.73°.
+    assert!((vertical(&c) - 22.73).abs() < 1e-2, "{}", vertical(&c));
+}
+
+/// Through the whole chain (Mitsuba XML → `lumis import` → RON → scene loader → a ray's hit):
+/// a PLY mesh without normals gets Mitsuba's smooth vertex normals. On an octahedron each
+/// vertex's angle-weighted normal is its own direction (by symmetry), so a hit near the +z
+/// corner of the (+x, +y, +z) face has the interpolated shading normal there, not the face's;
+/// with `face_normals` the shading normal is the face's.
+#[test]
+fn a_mesh_without_normals_is_shaded_smooth_once_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let vertices = [
+        [1.0f32, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    // Counter-clockwise seen from outside.
+    let faces = [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\n\
+         property float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for v in vertices {
+        writeln!(ply, "{} {} {}", v[0], v[1], v[2]).unwrap();
+    }
+    for f in faces {
+        writeln!(ply, "3 {} {} {}", f[0], f[1], f[2]).unwrap();
+    }
+    std::fs::write(d.join("octahedron.ply"), ply).unwrap();
+    let hit_normals = |options: &str| {
+        let xml = format!(
+            r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="ply"><string name="filename" value="octahedron.ply"/>{options}</shape>
+</scene>"#
+        );
+        std::fs::write(d.join("scene.xml"), xml).unwrap();
+        let c = convert_at(&d.join("scene.xml")).unwrap();
+        assert_eq!(c.problems, [], "{}", messages(&c.problems));
+        std::fs::write(d.join("scene.ron"), &c.ron).unwrap();
+        let loaded = common::load(&d.join("scene.ron"), &[]).unwrap();
+        // Toward the point with barycentrics (0.1, 0.1, 0.8) of the face (+x, +y, +z).
+        let target = glam::Vec3::new(0.1, 0.1, 0.8);
+        let origin = target * 3.0;
+        let ray = lumis::geometry::Ray {
+            origin,
+            direction: (target - origin).normalize(),
+            t_max: f32::INFINITY,
+        };
+        let hit = loaded
+            .scene
+            .intersect(&ray)
+            .expect("the ray meets the octahedron");
+        (hit.shading_normal, hit.geometric_normal)
+    };
+    let face = glam::Vec3::ONE.normalize();
+    let smooth = glam::Vec3::new(0.1, 0.1, 0.8).normalize();
+    let (shading, geometric) = hit_normals("");
+    assert!(geometric.abs_diff_eq(face, 1e-5), "{geometric}");
+    assert!(
+        shading.abs_diff_eq(smooth, 1e-4),
+        "{shading} instead of {smooth}"
+    );
+    let (shading, _) = hit_normals(r#"<boolean name="face_normals" value="true"/>"#);
+    assert!(shading.abs_diff_eq(face, 1e-5), "{shading}");
+}
+
+/// A spot light with a texture and an env map under a scaling transform are each refused once,
+/// with the reason, and left out.
+#[test]
+fn spot_textures_and_scaled_env_maps_are_refused_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_sky(&d.join("sky.exr"));
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <emitter type="spot">
+        <rgb name="intensity" value="1"/>
+        <float name="cutoff_angle" value="30"/>
+        <texture type="bitmap" name="texture"><string name="filename" value="sky.exr"/></texture>
+    </emitter>
+    <emitter type="envmap">
+        <string name="filename" value="sky.exr"/>
+        <transform name="to_world"><scale value="2"/></transform>
+    </emitter>
+</scene>"#;
+    std::fs::write(d.join("refused.xml"), xml).unwrap();
+    let c = convert_at(&d.join("refused.xml")).unwrap();
+    let problems = messages(&c.problems);
+    assert_eq!(c.problems.len(), 2, "{problems}");
+    assert!(
+        problems.contains("refused.xml:6: a spot light with a `texture`"),
+        "{problems}"
+    );
+    assert!(
+        problems.contains("refused.xml:8: an env map's `to_world` that scales"),
+        "{problems}"
+    );
+    assert!(c.description.emitters.is_empty());
+}

@@ -131,20 +131,28 @@ def mitsuba_runs(xml, defines, runs, spp, integrator):
 
 
 def design_effect(runs, block):
-    """How much more the 8×8-block means of `runs` (one image per seed) vary across seeds than
-    their pixels' variances alone say: Σ over blocks of the block mean's variance across runs,
-    over Σ of (Σ pixel variances / n²), at least 1. A renderer that splats a sample into several
-    pixels (Mitsuba's film with a Gaussian or tent filter) makes neighbouring pixels covary, and
-    the race's test, which sums pixel variances, then underestimates a block's; lumis samples
-    its filter by importance, so its pixels are independent (its estimate is 1 within noise).
-    Pooled over every block of the image, so it is a precise factor for the whole image."""
+    """How much more the block means of `runs` (one image per seed) vary across seeds than
+    their pixels' variances alone say. A renderer that splats a sample into several pixels
+    (Mitsuba's film with a Gaussian or tent filter) makes neighbouring pixels covary, and the
+    race's test, which sums pixel variances, then underestimates a block's variance; lumis
+    samples its filter by importance, so its pixels are independent (factor 1).
+
+    Per block, r = (variance of the block mean across the k runs) / (Σ pixel variances / n²)
+    is the factor times a χ²(k − 1)/(k − 1) variable; the factor is the median of r over every
+    block divided by that variable's median (robust to the heavy tails of path-traced pixels,
+    which make a pooled ratio unstable at 4 runs), and at least 1."""
     x = np.stack(runs).astype(np.float64)
     k, h, w = len(x), x.shape[1] // block * block, x.shape[2] // block * block
     x = x[:, :h, :w]
     pixels = x.var(0, ddof=1).reshape(h // block, block, w // block, block, 3).sum((1, 3))
     means = x.reshape(k, h // block, block, w // block, block, 3).mean((2, 4))
     blocks = means.var(0, ddof=1) * block ** 4
-    return max(1.0, float(blocks.sum() / max(pixels.sum(), 1e-300)))
+    ratios = blocks[pixels > 0] / pixels[pixels > 0]
+    if ratios.size == 0:
+        return 1.0
+    # The median of χ²(k − 1)/(k − 1), from a fixed-seed sample (to 0.1 %).
+    chi2_median = np.median(np.random.default_rng(0).chisquare(k - 1, 1_000_000)) / (k - 1)
+    return max(1.0, float(np.median(ratios) / chi2_median))
 
 
 def compare_correlated(runs_a, runs_b, block):
