@@ -11,11 +11,16 @@ work folder (default target/mitsuba-corpus) and their film sizes divided there, 
 checkout. mitsuba-data has no licence file of its own; its scenes are used here to render, not
 redistributed.
 
-Two comparisons per scene: against Mitsuba rendering the scene as written, and against Mitsuba
-with its `direct` integrator (what lumis renders for a `path` integrator until lumis has a path
-tracer): the first says whether lumis reproduces the scene, the second whether the conversion
-is right for what lumis renders. A scene that does not convert without refusals is still
-rendered from its `--partial` conversion and reported as such.
+Two comparisons per scene: against Mitsuba rendering the scene as written (the verdict), and
+against Mitsuba with its `direct` integrator, a control: lumis renders `path` where the file asks
+for it, so a scene with indirect light must disagree there, which shows that the test resolves
+the difference. A scene that does not convert without refusals is still rendered from its
+`--partial` conversion and reported as such.
+
+The block test is the race's, with each renderer's pixel variances scaled by its measured
+design effect (`design_effect`): Mitsuba's film splats a sample into several pixels under a
+Gaussian filter, so its neighbouring pixels covary and a sum of pixel variances understates a
+block's.
 
 Run through corpus.sh, which sets up the virtual environment and builds lumis.
 """
@@ -194,7 +199,7 @@ def main():
     p.add_argument("--work", type=Path, default=REPO / "target" / "mitsuba-corpus")
     p.add_argument("--data", type=Path, help="a checkout of mitsuba-data "
                    "(default: WORK/mitsuba-data, cloned when absent)")
-    p.add_argument("--runs", type=int, default=4, help="seeds per renderer")
+    p.add_argument("--runs", type=int, default=8, help="seeds per renderer")
     p.add_argument("--spp", type=int, default=16, help="samples per pixel of each run")
     p.add_argument("--shrink", type=int, default=6, help="divides literal film sizes")
     p.add_argument("--block", type=int, default=8, help="block edge (pixels) of the test")
