@@ -1171,3 +1171,283 @@ fn shapes_take_area_emitters_defined_after_them() {
     let emitter = c.description.shapes[0].emitter.as_ref().unwrap();
     assert_eq!(emitter.kind, "area");
 }
+
+/// Mitsuba's `direct` with one technique becomes lumis' `light` or `bsdf` with its sample count.
+/// Its emitter samples of a delta light are each weighted 1, not 1/`emitter_samples`
+/// (direct.cpp): the delta lights' `scale` is multiplied by `emitter_samples` (they are left out
+/// at 0, as BSDF samples never reach them), with a note; area and env lights are unchanged.
+#[test]
+fn direct_converts_each_technique_and_mitsubas_delta_light_weight() {
+    let scene = |integrator: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="direct">{integrator}</integrator>
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="0"/><rgb name="intensity" value="3"/><float name="scale" value="2"/></emitter>
+    <emitter type="spot"><rgb name="intensity" value="1"/></emitter>
+</scene>"#
+        )
+    };
+    let convert = |integrator: &str| {
+        let (dir, path) = scene_file("direct.xml", &scene(integrator));
+        let c = convert_at(&path);
+        drop(dir);
+        c
+    };
+    let scales = |c: &lumis::import::Conversion| -> Vec<(String, String)> {
+        c.description
+            .emitters
+            .iter()
+            .map(|e| (e.kind.clone(), ron::to_string(&e.params["scale"]).unwrap()))
+            .collect()
+    };
+    let samples = |c: &lumis::import::Conversion| {
+        let i = &c.description.integrator;
+        (
+            i.kind.clone(),
+            ron::to_string(&i.params["samples"]).unwrap(),
+        )
+    };
+
+    let c = convert(
+        r#"<integer name="emitter_samples" value="4"/><integer name="bsdf_samples" value="0"/>"#,
+    )
+    .unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    assert_eq!(samples(&c), ("light".into(), "4".into()));
+    assert_eq!(
+        scales(&c),
+        [
+            ("point".into(), "8.0".into()),
+            ("spot".into(), "4.0".into())
+        ]
+    );
+    let notes = messages(&c.notes);
+    assert!(
+        notes.contains("direct.xml:2: `direct` (4 emitter + 0 BSDF samples"),
+        "{notes}"
+    );
+    assert!(
+        notes.contains("2 point, spot or directional light(s) 4 times as bright"),
+        "{notes}"
+    );
+
+    let c = convert(r#"<integer name="emitter_samples" value="0"/>"#).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    assert_eq!(samples(&c), ("bsdf".into(), "1".into()));
+    assert!(c.description.emitters.is_empty(), "{}", c.ron);
+    assert_eq!(
+        c.description.shapes[0].emitter.as_ref().unwrap().kind,
+        "area"
+    );
+    assert!(messages(&c.notes).contains("never reaches a delta light"));
+
+    // One sample of each: the power heuristic, and every light as the file gives it.
+    let c = convert("").unwrap();
+    assert_eq!(samples(&c), ("power".into(), "2".into()));
+    assert_eq!(
+        scales(&c),
+        [
+            ("point".into(), "2.0".into()),
+            ("spot".into(), "1.0".into())
+        ]
+    );
+    assert!(!messages(&c.notes).contains("times as bright"));
+
+    // What Mitsuba refuses, refused with the line.
+    for (integrator, expect) in [
+        (
+            r#"<integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="0"/>"#,
+            "direct.xml:2: `direct` with no emitter and no BSDF sample",
+        ),
+        (
+            r#"<integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="1"/>"#,
+            "direct.xml:2: `shading_samples` with `emitter_samples` or `bsdf_samples`",
+        ),
+        (
+            r#"<integer name="bsdf_samples" value="-1"/>"#,
+            "direct.xml:2: `bsdf_samples` must be a non-negative integer",
+        ),
+    ] {
+        let c = convert(integrator).unwrap();
+        let problems = messages(&c.problems);
+        assert!(problems.contains(expect), "{problems}");
+    }
+}
+
+/// Mitsuba 3 does not normalise a rotation axis (Dr.Jit's `rotate`): (0, 1, 1) at 90° turns
+/// and stretches, and is converted as Mitsuba reads it, with a note.
+#[test]
+fn a_rotation_about_an_axis_of_other_length_is_read_as_mitsuba_reads_it() {
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="sphere">
+        <transform name="to_world"><rotate y="1" z="1" angle="90"/></transform>
+    </shape>
+</scene>"#;
+    let (_dir, path) = scene_file("axis.xml", xml);
+    let c = convert_at(&path).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    assert!(messages(&c.notes).contains("axis.xml:4: the rotation axis (0, 1, 1) is not of unit"));
+    let text = ron::to_string(&c.description.shapes[0].transform).unwrap();
+    // c I + (1 − c) a aᵀ + s [a]× at c = 0, s = 1, a = (0, 1, 1), row by row (as Mitsuba's
+    // Python `ScalarTransform4f().rotate([0, 1, 1], 90)` gives it).
+    assert!(
+        text.contains("(0.0,-1.0,1.0,0.0,1.0,1.0,1.0,0.0,-1.0,1.0,1.0,0.0,0.0,0.0,0.0,1.0)"),
+        "{text}"
+    );
+}
+
+/// Mitsuba reads `$name` parameters in document order, an included file where its `<include>`
+/// is: a `<default>` in an included file serves what comes after the include (in the including
+/// file too), and a parameter used before the `<default>` that defines it is refused, as
+/// Mitsuba refuses it, unless `-D` gives it.
+#[test]
+fn parameters_defined_later_in_an_include_are_refused_as_mitsuba_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("inc.xml"),
+        r#"<scene version="3.0.0"><default name="fov" value="40"/></scene>"#,
+    )
+    .unwrap();
+    let scene = |first: &str, second: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    {first}
+    {second}
+</scene>"#
+        )
+    };
+    let include = r#"<include filename="inc.xml"/>"#;
+    let sensor = r#"<sensor type="perspective"><float name="fov" value="$fov"/></sensor>"#;
+    std::fs::write(d.join("after.xml"), scene(include, sensor)).unwrap();
+    // `fov` is horizontal in Mitsuba, vertical in lumis: 2·atan(tan(20°) · 576/768) = 30.537°
+    // on Mitsuba's default 768×576 film.
+    let vertical = |c: &lumis::import::Conversion| c.description.camera.fov.unwrap();
+    let c = convert_at(&d.join("after.xml")).unwrap();
+    assert!((vertical(&c) - 30.537).abs() < 1e-3, "{}", vertical(&c));
+
+    std::fs::write(d.join("before.xml"), scene(sensor, include)).unwrap();
+    let e = convert_at(&d.join("before.xml")).unwrap_err();
+    assert!(
+        e.contains("before.xml:2: `$fov` is used before the <default> that defines it"),
+        "{e}"
+    );
+    let given = [("fov".to_string(), "30".to_string())];
+    let c = lumis::import::convert_file(&d.join("before.xml"), d, &given).unwrap();
+    // 2·atan(tan(15°) · 576/768) = 22.73°.
+    assert!((vertical(&c) - 22.73).abs() < 1e-2, "{}", vertical(&c));
+}
+
+/// Through the whole chain (Mitsuba XML → `lumis import` → RON → scene loader → a ray's hit):
+/// a PLY mesh without normals gets Mitsuba's smooth vertex normals. On an octahedron each
+/// vertex's angle-weighted normal is its own direction (by symmetry), so a hit near the +z
+/// corner of the (+x, +y, +z) face has the interpolated shading normal there, not the face's;
+/// with `face_normals` the shading normal is the face's.
+#[test]
+fn a_mesh_without_normals_is_shaded_smooth_once_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let vertices = [
+        [1.0f32, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    // Counter-clockwise seen from outside.
+    let faces = [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\n\
+         property float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for v in vertices {
+        writeln!(ply, "{} {} {}", v[0], v[1], v[2]).unwrap();
+    }
+    for f in faces {
+        writeln!(ply, "3 {} {} {}", f[0], f[1], f[2]).unwrap();
+    }
+    std::fs::write(d.join("octahedron.ply"), ply).unwrap();
+    let hit_normals = |options: &str| {
+        let xml = format!(
+            r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <shape type="ply"><string name="filename" value="octahedron.ply"/>{options}</shape>
+</scene>"#
+        );
+        std::fs::write(d.join("scene.xml"), xml).unwrap();
+        let c = convert_at(&d.join("scene.xml")).unwrap();
+        assert_eq!(c.problems, [], "{}", messages(&c.problems));
+        std::fs::write(d.join("scene.ron"), &c.ron).unwrap();
+        let loaded = common::load(&d.join("scene.ron"), &[]).unwrap();
+        // Toward the point with barycentrics (0.1, 0.1, 0.8) of the face (+x, +y, +z).
+        let target = glam::Vec3::new(0.1, 0.1, 0.8);
+        let origin = target * 3.0;
+        let ray = lumis::geometry::Ray {
+            origin,
+            direction: (target - origin).normalize(),
+            t_max: f32::INFINITY,
+        };
+        let hit = loaded
+            .scene
+            .intersect(&ray)
+            .expect("the ray meets the octahedron");
+        (hit.shading_normal, hit.geometric_normal)
+    };
+    let face = glam::Vec3::ONE.normalize();
+    let smooth = glam::Vec3::new(0.1, 0.1, 0.8).normalize();
+    let (shading, geometric) = hit_normals("");
+    assert!(geometric.abs_diff_eq(face, 1e-5), "{geometric}");
+    assert!(
+        shading.abs_diff_eq(smooth, 1e-4),
+        "{shading} instead of {smooth}"
+    );
+    let (shading, _) = hit_normals(r#"<boolean name="face_normals" value="true"/>"#);
+    assert!(shading.abs_diff_eq(face, 1e-5), "{shading}");
+}
+
+/// A spot light with a texture and an env map under a scaling transform are each refused once,
+/// with the reason, and left out.
+#[test]
+fn spot_textures_and_scaled_env_maps_are_refused_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_sky(&d.join("sky.exr"));
+    let xml = r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/></sensor>
+    <emitter type="spot">
+        <rgb name="intensity" value="1"/>
+        <float name="cutoff_angle" value="30"/>
+        <texture type="bitmap" name="texture"><string name="filename" value="sky.exr"/></texture>
+    </emitter>
+    <emitter type="envmap">
+        <string name="filename" value="sky.exr"/>
+        <transform name="to_world"><scale value="2"/></transform>
+    </emitter>
+</scene>"#;
+    std::fs::write(d.join("refused.xml"), xml).unwrap();
+    let c = convert_at(&d.join("refused.xml")).unwrap();
+    let problems = messages(&c.problems);
+    assert_eq!(c.problems.len(), 2, "{problems}");
+    assert!(
+        problems.contains("refused.xml:6: a spot light with a `texture`"),
+        "{problems}"
+    );
+    assert!(
+        problems.contains("refused.xml:8: an env map's `to_world` that scales"),
+        "{problems}"
+    );
+    assert!(c.description.emitters.is_empty());
+}

@@ -76,6 +76,18 @@ impl Converter {
             return Ok(());
         }
         let mut p = self.properties(node)?;
+        if p.kind == "spot"
+            && let Some(texture) = p.objects.first()
+        {
+            let at = line(texture);
+            p.refused = true;
+            self.problem(
+                at,
+                "a spot light with a `texture` (an image projected through its cone) is not \
+                 converted: lumis' `spot` has no texture; the light is left out",
+            );
+            return Ok(());
+        }
         self.objects_not_converted(&p.objects, "an emitter", false);
         let to_world = p.transform("to_world")?;
         let scale = p.number("scale")?.map_or(1.0, |(s, _)| s) as f32;
@@ -129,8 +141,10 @@ impl Converter {
         let Some(rotation) = rotation_of(to_world.unwrap_or(DMat4::IDENTITY)) else {
             self.refuse(
                 p,
-                "an env map's `to_world` that scales, skews or mirrors is not converted (Mitsuba \
-                 reads directions through it unnormalised)",
+                "an env map's `to_world` that scales, skews or mirrors is not converted: \
+                 Mitsuba applies it to directions without normalising them (its envmap.cpp \
+                 looks the map up at acos(y) of the unnormalised direction and samples \
+                 unnormalised directions), so its image is not the map turned",
             );
             return Ok(None);
         };
@@ -247,11 +261,6 @@ impl Converter {
                 }
                 spec = spec.float(name, degrees as f32);
             }
-        }
-        if let Some(texture) = p.objects.first() {
-            let at = line(texture);
-            self.problem(at, "a spot light's `texture` is not converted");
-            return Ok(None);
         }
         Ok(Some(spec))
     }

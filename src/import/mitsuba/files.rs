@@ -92,7 +92,70 @@ impl Sources {
         };
         let mut budget = MAX_XML_BYTES;
         sources.add(path.to_path_buf(), text, &mut Vec::new(), &mut budget)?;
+        let docs = sources
+            .files
+            .iter()
+            .map(|f| Document::parse(&f.text))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("not valid XML: {e}"))?;
+        let mut known: BTreeMap<String, String> = defines.iter().cloned().collect();
+        sources.in_order(&docs, 0, docs[0].root_element(), &mut known)?;
         Ok(sources)
+    }
+
+    /// Checks that every `$name` in file `index` (from `node` down) is defined before it is
+    /// used, in the order Mitsuba's parser reads the files: depth first through the elements,
+    /// an included file where its `<include>` is, a `<default>` taking effect where it is (and
+    /// for the rest of the scene, the including files too). `known` holds the parameters
+    /// defined so far. Mitsuba fails on a parameter that a `<default>` defines only later
+    /// ("undefined parameter"); so does this, naming where it is defined.
+    fn in_order(
+        &self,
+        docs: &[Document],
+        index: usize,
+        node: Node,
+        known: &mut BTreeMap<String, String>,
+    ) -> Result<(), String> {
+        let path = &self.files[index].path;
+        for attribute in node.attributes() {
+            if let Err(e) = substitute(attribute.value(), known) {
+                let later = self
+                    .parameters
+                    .keys()
+                    .filter(|n| !known.contains_key(*n))
+                    .find(|n| attribute.value().contains(&format!("${n}")));
+                return Err(match later {
+                    Some(name) => format!(
+                        "{}:{}: `${name}` is used before the <default> that defines it: Mitsuba \
+                         reads parameters in order and refuses this (\"undefined parameter\"); \
+                         give it with -D {name}=...",
+                        path.display(),
+                        line(&node)
+                    ),
+                    None => format!("{}:{}: {e}", path.display(), line(&node)),
+                });
+            }
+        }
+        match node.tag_name().name() {
+            "default" => {
+                if let (Some(name), Some(value)) = (node.attribute("name"), node.attribute("value"))
+                {
+                    known
+                        .entry(name.to_string())
+                        .or_insert_with(|| value.to_string());
+                }
+            }
+            "include" => {
+                if let Some(&child) = self.includes.get(&(index, node.range().start)) {
+                    self.in_order(docs, child, docs[child].root_element(), known)?;
+                }
+            }
+            _ => {}
+        }
+        for child in node.children().filter(Node::is_element) {
+            self.in_order(docs, index, child, known)?;
+        }
+        Ok(())
     }
 
     /// Adds file `path` (text `text`) and, depth first, the files it includes; `chain` holds

@@ -1,11 +1,15 @@
-//! `<integrator>`: `direct` becomes lumis' `power` (the same power-heuristic estimator); `path`,
+//! `<integrator>`: `direct` becomes lumis' `power` (the power heuristic), or `light` / `bsdf`
+//! when it takes samples of one technique only, with Mitsuba's weight of delta lights (see
+//! `Converter::direct`); `path`,
 //! and `moment` around a `path`, become lumis' `path` with Mitsuba's estimator at every vertex
 //! (one light per vertex, one light and one BSDF sample, the power heuristic).
 
 use super::Converter;
 use super::properties::{Properties, Value};
 use lumis_core::scene::description::PluginSpec;
-use lumis_integrators::{mis, path, power as power_plugin};
+use lumis_integrators::{
+    bsdf as bsdf_plugin, light as light_plugin, mis, path, power as power_plugin,
+};
 use roxmltree::Node;
 
 /// lumis' `power` integrator with `samples` per light.
@@ -62,33 +66,81 @@ impl Converter {
         Ok(())
     }
 
+    /// Mitsuba's `direct` (src/integrators/direct.cpp): `emitter_samples` samples of one light
+    /// each and `bsdf_samples` BSDF samples, power heuristic. One technique alone becomes lumis'
+    /// `light` or `bsdf`, both become `power`. A delta light's emitter sample is weighted 1 there,
+    /// not 1/`emitter_samples`, so Mitsuba's image has each delta light `emitter_samples` times
+    /// (none with 0): recorded in `delta_light_factor` and applied to the emitters at the end.
     fn direct(&mut self, p: &mut Properties) {
         let mut count = |name: &str| match p.take(name) {
-            Some((Value::Int(n), _)) if n > 0 => Some(n),
+            Some((Value::Int(n), l)) if n >= 0 => Some((n, l)),
             Some((_, l)) => {
                 self.report
-                    .problem(l, format!("`{name}` must be a positive integer"));
+                    .problem(l, format!("`{name}` must be a non-negative integer"));
                 None
             }
             None => None,
         };
-        let shading = count("shading_samples").unwrap_or(1);
-        let emitter = count("emitter_samples").unwrap_or(shading);
-        let bsdf = count("bsdf_samples").unwrap_or(shading);
+        let shading = count("shading_samples");
+        let emitter = count("emitter_samples");
+        let bsdf = count("bsdf_samples");
+        if let (Some((_, l)), true) = (shading, emitter.is_some() || bsdf.is_some()) {
+            // Mitsuba throws on this.
+            self.problem(
+                l,
+                "`shading_samples` with `emitter_samples` or `bsdf_samples`: Mitsuba refuses                  both at once",
+            );
+            return;
+        }
+        let shading = shading.map_or(1, |(n, _)| n);
+        let emitter = emitter.map_or(shading, |(n, _)| n);
+        let bsdf = bsdf.map_or(shading, |(n, _)| n);
         if let Some((Value::Bool(true), l)) = p.take("hide_emitters") {
             self.problem(l, "`hide_emitters` is not converted");
         }
-        // Saturates: `power` refuses more samples than it takes, with its limit.
-        let samples = emitter.saturating_add(bsdf);
+        // `samples` saturates: the plugins refuse more than they take, with their limit.
+        let (spec, what) = match (emitter, bsdf) {
+            (0, 0) => {
+                self.problem(
+                    p.line,
+                    "`direct` with no emitter and no BSDF sample: Mitsuba refuses it",
+                );
+                return;
+            }
+            (n, 0) => (
+                PluginSpec::new(light_plugin::NAME).int(mis::SAMPLES, n),
+                format!(
+                    "lumis `light` with samples {n}: light sampling only; at a purely specular \
+                     surface (a smooth conductor or dielectric) lumis samples the BSDF where \
+                     Mitsuba's image has nothing but emitters seen directly"
+                ),
+            ),
+            (0, n) => (
+                PluginSpec::new(bsdf_plugin::NAME).int(mis::SAMPLES, n),
+                format!("lumis `bsdf` with samples {n}: BSDF sampling only"),
+            ),
+            (e, b) => {
+                let n = e.saturating_add(b);
+                (
+                    power(n),
+                    format!(
+                        "lumis `power` with samples {n}: the same power heuristic, its samples \
+                         split evenly between the techniques (the same mean)"
+                    ),
+                )
+            }
+        };
         self.note(
             p.line,
             format!(
                 "`direct` ({emitter} emitter + {bsdf} BSDF samples, one light chosen per emitter \
-                 sample) becomes lumis `power` with samples {samples}: the same power-heuristic \
-                 estimator of the same image, taking its samples from every light"
+                 sample) becomes {what}"
             ),
         );
-        self.integrator = Some(power(samples));
+        if emitter != 1 {
+            self.delta_light_factor = Some((emitter, p.line));
+        }
+        self.integrator = Some(spec);
     }
 
     fn path_integrator(&mut self, p: &mut Properties) {

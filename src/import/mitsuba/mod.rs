@@ -34,6 +34,7 @@ use lumis_core::scene::description::{
     CameraDescription, FilmDescription, PluginSpec, SamplerDescription, SceneDescription,
     ShapeDescription,
 };
+use lumis_emitters::{SCALE, directional, point, spot};
 use properties::{Properties, Xml, line};
 use roxmltree::{Document, Node};
 use std::collections::{BTreeMap, HashMap};
@@ -126,6 +127,7 @@ pub fn convert(
         film: None,
         sampler: None,
         integrator: None,
+        delta_light_factor: None,
         integrator_refused: false,
         bsdfs: BTreeMap::new(),
         refused_bsdfs: BTreeMap::new(),
@@ -226,6 +228,9 @@ struct Converter {
     film: Option<FilmDescription>,
     sampler: Option<SamplerDescription>,
     integrator: Option<PluginSpec>,
+    /// Mitsuba's `direct` with `emitter_samples` ≠ 1 shows each delta light that many times
+    /// (`integrator.rs`): the factor and the integrator's line.
+    delta_light_factor: Option<(i64, u32)>,
     /// An `<integrator>` was there but could not be converted.
     integrator_refused: bool,
     bsdfs: BTreeMap<String, PluginSpec>,
@@ -541,6 +546,9 @@ impl Converter {
             }
             integrator::mitsuba_path()
         });
+        if let Some((factor, at)) = self.delta_light_factor {
+            self.scale_delta_lights(factor, at);
+        }
         SceneDescription {
             camera,
             film,
@@ -551,6 +559,51 @@ impl Converter {
             emitters: std::mem::take(&mut self.emitters),
             plugins: Vec::new(),
         }
+    }
+
+    /// Multiplies the intensity of every delta light (point, spot, directional) by `factor`, or
+    /// removes them at 0, as Mitsuba's `direct` (integrator at line `at`) renders them: its
+    /// emitter samples of a delta light are weighted 1, not 1/`emitter_samples`
+    /// (direct.cpp, `dr::select(ds.delta, 1, ...)`), and BSDF samples never reach one.
+    fn scale_delta_lights(&mut self, factor: i64, at: u32) {
+        let delta = [point::NAME, spot::NAME, directional::NAME];
+        let is_delta = |e: &PluginSpec| delta.contains(&e.kind.as_str());
+        let count = self.emitters.iter().filter(|e| is_delta(e)).count();
+        if count == 0 {
+            return;
+        }
+        if factor == 0 {
+            self.emitters.retain(|e| !is_delta(e));
+            self.note(
+                at,
+                format!(
+                    "Mitsuba's `direct` without emitter samples never reaches a delta light: \
+                     the scene's {count} point, spot or directional light(s) are left out, as in \
+                     its image"
+                ),
+            );
+            return;
+        }
+        for e in self.emitters.iter_mut().filter(|e| is_delta(e)) {
+            let scale = match e.params.get(SCALE.name) {
+                Some(ron::Value::Number(n)) => n.into_f64(),
+                _ => 1.0,
+            };
+            e.params.insert(
+                SCALE.name.into(),
+                ron::Value::Number(ron::value::Number::from((scale * factor as f64) as f32)),
+            );
+        }
+        self.note(
+            at,
+            format!(
+                "Mitsuba's `direct` weights each of its {factor} emitter samples of a delta light \
+                 by 1, not 1/{factor} (direct.cpp): its image has the scene's {count} point, spot \
+                 or directional light(s) {factor} times as bright; their `scale` is multiplied by \
+                 {factor} to render the same image (divide it by {factor} for the scene's \
+                 physical light)"
+            ),
+        );
     }
 
     /// An asset file name in the XML, as the RON file must write it, found as Mitsuba finds

@@ -29,7 +29,19 @@ pub(super) fn read(
                 if axis.length_squared() == 0.0 {
                     return Err(format!("line {at}: a rotation axis must not be zero"));
                 }
-                rotation(axis.normalize(), angle)
+                let length = axis.length();
+                if (length - 1.0).abs() > 1e-6 {
+                    report.note(
+                        at,
+                        format!(
+                            "the rotation axis ({}, {}, {}) is not of unit length ({length:.4}): \
+                             Mitsuba 3 does not normalise it (Dr.Jit's `rotate`), so its matrix \
+                             turns and also stretches; converted as Mitsuba reads it",
+                            axis.x, axis.y, axis.z
+                        ),
+                    );
+                }
+                rotation(axis, angle)
             }
             "matrix" => matrix(&op, xml)?,
             "lookAt" if version.is_legacy() => {
@@ -121,8 +133,10 @@ fn look_at(op: &Node, xml: &Xml, report: &mut Report) -> Result<Option<DMat4>, S
     )))
 }
 
-/// Rotation by `degrees` about the unit `axis`, with sin and cos exact at multiples of 90° (as
-/// lumis' own `rotate`, so that turned planes stay exactly axis-aligned).
+/// Mitsuba's (Dr.Jit's) rotation matrix by `degrees` about `axis`, c I + (1 − c) a aᵀ + s [a]×,
+/// which is a rotation only for a unit `axis` (Mitsuba does not normalise it), with sin and cos
+/// exact at multiples of 90° (as lumis' own `rotate`, so that turned planes stay exactly
+/// axis-aligned).
 fn rotation(axis: DVec3, degrees: f64) -> DMat4 {
     let quarter_turns = degrees / 90.0;
     let (s, c) = if quarter_turns == quarter_turns.round() {
