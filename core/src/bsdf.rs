@@ -19,10 +19,7 @@ mod lanes;
 mod sample;
 
 pub use context::{BsdfContext, Side};
-pub use lanes::{
-    BsdfContextLanes, BsdfLanes, BsdfSampleLanes, eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes,
-    sample_one,
-};
+pub use lanes::{BsdfContextLanes, BsdfLanes, BsdfSampleLanes};
 pub use sample::BsdfSample;
 
 use crate::math::Rgb;
@@ -184,7 +181,7 @@ pub trait Bsdf: Send + Sync {
     /// and ωo), or the samples of several points at once. `wi` is as long as `out`; `ctx` and
     /// `wo` too, or of length 1. The default calls `eval_pdf` for each; a BSDF whose formulas
     /// are written over [`Lanes`](crate::math::lanes::Lanes) ([`BsdfLanes`]) evaluates four
-    /// or eight at a time ([`eval_pdf_in_lanes`]), bit for bit as `eval_pdf`.
+    /// or eight at a time, bit for bit as `eval_pdf`.
     fn eval_pdf_batch(
         &self,
         ctx: &[BsdfContext],
