@@ -1,5 +1,5 @@
 //! The BSDF interface over [`Lanes`]: a BSDF writes `eval_pdf` and `sample` once
-//! ([`BsdfLanes`]) and is a [`Bsdf`] by that alone, whose scalar methods run them on one
+//! ([`BsdfLanes`]) and is a [`Bsdf`](super::Bsdf) by that alone, whose scalar methods run them on one
 //! sample (`f32`) and whose batch methods on four or eight, with the same operations in each
 //! lane, so that the results agree bit for bit.
 //!
@@ -9,8 +9,8 @@
 //! parameters are splats, resolved once per batch.
 
 use super::context::{BsdfContext, Side};
+use super::flags::BsdfFlags;
 use super::sample::BsdfSample;
-use super::{Bsdf, BsdfFlags};
 use crate::math::Rgb;
 use crate::math::lanes::{LaneKernel, Lanes, Mask, V2, V3, by_groups, with_widest_lanes};
 use glam::{Vec2, Vec3};
@@ -149,8 +149,8 @@ impl<L: Lanes> BsdfSampleLanes<L> {
 }
 
 /// A BSDF whose `eval_pdf` and `sample` are written over [`Lanes`], once for the scalar
-/// methods of its [`Bsdf`] (on `f32`) and the batch ones (as many lanes wide as the processor
-/// has): every `BsdfLanes` is a [`Bsdf`], through the one implementation below.
+/// methods of its [`Bsdf`](super::Bsdf) (on `f32`) and the batch ones (as many lanes wide as the processor
+/// has): every `BsdfLanes` is a [`Bsdf`](super::Bsdf), through the one implementation in `bsdf.rs`.
 ///
 /// A kernel is given each lane's context and the BSDF's parameters resolved at it
 /// ([`params_lanes`](Self::params_lanes)): for the samples of one shading point both are the
@@ -170,7 +170,7 @@ pub trait BsdfLanes: Send + Sync {
     const READS_CONTEXT: bool = true;
 
     /// Its lobes, and [`BsdfFlags::SPATIALLY_VARYING`] where a parameter is textured: what its
-    /// [`Bsdf::flags`] returns.
+    /// [`Bsdf::flags`](super::Bsdf::flags) returns.
     fn bsdf_flags(&self) -> BsdfFlags;
 
     /// The parameters at each lane's context.
@@ -197,58 +197,9 @@ pub trait BsdfLanes: Send + Sync {
     ) -> BsdfSampleLanes<L>;
 }
 
-/// The [`Bsdf`] of every BSDF written over [`Lanes`]: `eval`, `pdf` and `eval_pdf` are its
-/// `eval_pdf` formula on one lane (the part a method does not return is dead code the compiler
-/// removes), `sample` its `sample` formula, and the batches run both four or eight lanes wide.
-impl<B: BsdfLanes> Bsdf for B {
-    #[inline]
-    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
-        eval_pdf_one(self, ctx, wo, wi).0
-    }
-
-    #[inline]
-    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
-        eval_pdf_one(self, ctx, wo, wi).1
-    }
-
-    #[inline]
-    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        eval_pdf_one(self, ctx, wo, wi)
-    }
-
-    #[inline]
-    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_one(self, ctx, wo, u_lobe, u)
-    }
-
-    fn flags(&self) -> BsdfFlags {
-        self.bsdf_flags()
-    }
-
-    fn eval_pdf_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        wi: &[Vec3],
-        out: &mut [(Rgb, f32)],
-    ) {
-        eval_pdf_in_lanes(self, ctx, wo, wi, out);
-    }
-
-    fn sample_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        u: &[(f32, Vec2)],
-        out: &mut [Option<BsdfSample>],
-    ) {
-        sample_in_lanes(self, ctx, wo, u, out);
-    }
-}
-
-/// [`Bsdf::eval_pdf`] of a BSDF written over [`Lanes`]: its formula on one lane.
+/// [`Bsdf::eval_pdf`](super::Bsdf::eval_pdf) of a BSDF written over [`Lanes`]: its formula on one lane.
 #[inline(always)]
-fn eval_pdf_one<B: BsdfLanes + ?Sized>(
+pub(super) fn eval_pdf_one<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &BsdfContext,
     wo: Vec3,
@@ -260,9 +211,9 @@ fn eval_pdf_one<B: BsdfLanes + ?Sized>(
     (value.lane(0), pdf)
 }
 
-/// [`Bsdf::sample`] of a BSDF written over [`Lanes`]: its formula on one lane.
+/// [`Bsdf::sample`](super::Bsdf::sample) of a BSDF written over [`Lanes`]: its formula on one lane.
 #[inline(always)]
-fn sample_one<B: BsdfLanes + ?Sized>(
+pub(super) fn sample_one<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &BsdfContext,
     wo: Vec3,
@@ -309,10 +260,10 @@ fn single_context<B: BsdfLanes + ?Sized, L: Lanes>(
     }
 }
 
-/// [`Bsdf::eval_pdf_batch`] for a BSDF written over [`Lanes`]: four or eight pairs at a time
+/// [`Bsdf::eval_pdf_batch`](super::Bsdf::eval_pdf_batch) for a BSDF written over [`Lanes`]: four or eight pairs at a time
 /// ([`with_widest_lanes`]).
 #[inline(always)]
-fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
+pub(super) fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &[BsdfContext],
     wo: &[Vec3],
@@ -374,10 +325,10 @@ fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
     });
 }
 
-/// [`Bsdf::sample_batch`] for a BSDF written over [`Lanes`]: four or eight samples at a time
+/// [`Bsdf::sample_batch`](super::Bsdf::sample_batch) for a BSDF written over [`Lanes`]: four or eight samples at a time
 /// ([`with_widest_lanes`]).
 #[inline(always)]
-fn sample_in_lanes<B: BsdfLanes + ?Sized>(
+pub(super) fn sample_in_lanes<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &[BsdfContext],
     wo: &[Vec3],
