@@ -15,134 +15,20 @@
 //! several, at one shading point or at several.
 
 mod context;
+mod flags;
 mod lanes;
 mod sample;
 
 pub use context::{BsdfContext, Side};
-pub use lanes::{
-    BsdfContextLanes, BsdfLanes, BsdfSampleLanes, eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes,
-    sample_one,
-};
+pub use flags::BsdfFlags;
+pub use lanes::{BsdfContextLanes, BsdfLanes, BsdfSampleLanes};
 pub use sample::BsdfSample;
+
+use lanes::{eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one};
 
 use crate::math::Rgb;
 use crate::math::lanes::one_or_each;
 use glam::{Vec2, Vec3};
-use std::ops::{BitAnd, BitOr, BitOrAssign};
-
-/// Which kinds of lobes a BSDF has, and whether it varies over the surface; integrators use
-/// them to skip work (light sampling is useless for a purely delta BSDF), the shading point to
-/// know whether to compute texture coordinates and whether light may pass through.
-///
-/// A set of bits, combined with `|`: `BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::GLOSSY_REFLECTION`.
-/// Each lobe kind comes as a reflection and a transmission bit (Mitsuba 3's `BSDFFlags`), so
-/// that a transmitting BSDF says so; [`diffuse`](Self::diffuse), [`transmission`](Self::transmission)
-/// and the other queries test either.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct BsdfFlags(u32);
-
-impl BsdfFlags {
-    /// No lobe: the surface scatters nothing (the back of a one-sided BSDF).
-    pub const NONE: Self = BsdfFlags(0);
-    pub const DIFFUSE_REFLECTION: Self = BsdfFlags(1);
-    pub const GLOSSY_REFLECTION: Self = BsdfFlags(1 << 1);
-    /// A Dirac lobe of reflection (a mirror): `eval` and `pdf` are zero for every given direction.
-    pub const DELTA_REFLECTION: Self = BsdfFlags(1 << 2);
-    pub const DIFFUSE_TRANSMISSION: Self = BsdfFlags(1 << 3);
-    pub const GLOSSY_TRANSMISSION: Self = BsdfFlags(1 << 4);
-    /// A Dirac lobe of transmission (smooth glass).
-    pub const DELTA_TRANSMISSION: Self = BsdfFlags(1 << 5);
-    /// The BSDF reads [`BsdfContext::uv`] (a textured parameter): the shading point computes
-    /// the texture coordinates for it. The scene loader adds it to the flags of a BSDF that
-    /// was given a texture, so a BSDF need not say it for its textured parameters.
-    pub const SPATIALLY_VARYING: Self = BsdfFlags(1 << 6);
-
-    pub const DIFFUSE: Self = BsdfFlags(Self::DIFFUSE_REFLECTION.0 | Self::DIFFUSE_TRANSMISSION.0);
-    pub const GLOSSY: Self = BsdfFlags(Self::GLOSSY_REFLECTION.0 | Self::GLOSSY_TRANSMISSION.0);
-    pub const DELTA: Self = BsdfFlags(Self::DELTA_REFLECTION.0 | Self::DELTA_TRANSMISSION.0);
-    pub const REFLECTION: Self = BsdfFlags(
-        Self::DIFFUSE_REFLECTION.0 | Self::GLOSSY_REFLECTION.0 | Self::DELTA_REFLECTION.0,
-    );
-    pub const TRANSMISSION: Self = BsdfFlags(
-        Self::DIFFUSE_TRANSMISSION.0 | Self::GLOSSY_TRANSMISSION.0 | Self::DELTA_TRANSMISSION.0,
-    );
-
-    /// The bits of both.
-    pub const fn union(self, other: Self) -> Self {
-        BsdfFlags(self.0 | other.0)
-    }
-
-    /// Whether every bit of `other` is set.
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-
-    /// Whether some bit of `other` is set.
-    pub const fn intersects(self, other: Self) -> bool {
-        self.0 & other.0 != 0
-    }
-
-    /// A diffuse lobe, of reflection or transmission.
-    pub const fn diffuse(self) -> bool {
-        self.intersects(Self::DIFFUSE)
-    }
-
-    /// A glossy lobe, of reflection or transmission.
-    pub const fn glossy(self) -> bool {
-        self.intersects(Self::GLOSSY)
-    }
-
-    /// A Dirac lobe, of reflection or transmission.
-    pub const fn delta(self) -> bool {
-        self.intersects(Self::DELTA)
-    }
-
-    /// Some lobe of reflection.
-    pub const fn reflection(self) -> bool {
-        self.intersects(Self::REFLECTION)
-    }
-
-    /// Some lobe of transmission: directions on the far side of the surface (`wi.z < 0`) are
-    /// valid.
-    pub const fn transmission(self) -> bool {
-        self.intersects(Self::TRANSMISSION)
-    }
-
-    /// See [`SPATIALLY_VARYING`](Self::SPATIALLY_VARYING).
-    pub const fn spatially_varying(self) -> bool {
-        self.intersects(Self::SPATIALLY_VARYING)
-    }
-
-    /// Only Dirac lobes, which light sampling can never reach.
-    pub const fn is_pure_delta(self) -> bool {
-        self.delta() && !self.intersects(Self::DIFFUSE.union(Self::GLOSSY))
-    }
-
-    /// No lobe at all: the surface scatters nothing.
-    pub const fn is_black(self) -> bool {
-        !self.intersects(Self::REFLECTION.union(Self::TRANSMISSION))
-    }
-}
-
-impl BitOr for BsdfFlags {
-    type Output = Self;
-    fn bitor(self, rhs: Self) -> Self {
-        self.union(rhs)
-    }
-}
-
-impl BitOrAssign for BsdfFlags {
-    fn bitor_assign(&mut self, rhs: Self) {
-        *self = self.union(rhs);
-    }
-}
-
-impl BitAnd for BsdfFlags {
-    type Output = Self;
-    fn bitand(self, rhs: Self) -> Self {
-        BsdfFlags(self.0 & rhs.0)
-    }
-}
 
 /// A scattering model: reflection, and transmission where its flags say so.
 ///
@@ -184,7 +70,7 @@ pub trait Bsdf: Send + Sync {
     /// and ωo), or the samples of several points at once. `wi` is as long as `out`; `ctx` and
     /// `wo` too, or of length 1. The default calls `eval_pdf` for each; a BSDF whose formulas
     /// are written over [`Lanes`](crate::math::lanes::Lanes) ([`BsdfLanes`]) evaluates four
-    /// or eight at a time ([`eval_pdf_in_lanes`]), bit for bit as `eval_pdf`.
+    /// or eight at a time, bit for bit as `eval_pdf`.
     fn eval_pdf_batch(
         &self,
         ctx: &[BsdfContext],
@@ -213,6 +99,56 @@ pub trait Bsdf: Send + Sync {
         for (k, (&(u_lobe, u), out)) in u.iter().zip(out).enumerate() {
             *out = self.sample(&one_or_each(ctx, k), one_or_each(wo, k), u_lobe, u);
         }
+    }
+}
+
+/// The [`Bsdf`] of every BSDF written over [`Lanes`](crate::math::lanes::Lanes)
+/// ([`BsdfLanes`]): `eval`, `pdf` and `eval_pdf` are its `eval_pdf` formula on one lane (the
+/// part a method does not return is dead code the compiler removes), `sample` its `sample`
+/// formula, and the batches run both four or eight lanes wide (`bsdf/lanes.rs`).
+impl<B: BsdfLanes> Bsdf for B {
+    #[inline]
+    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
+        eval_pdf_one(self, ctx, wo, wi).0
+    }
+
+    #[inline]
+    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
+        eval_pdf_one(self, ctx, wo, wi).1
+    }
+
+    #[inline]
+    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        eval_pdf_one(self, ctx, wo, wi)
+    }
+
+    #[inline]
+    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        sample_one(self, ctx, wo, u_lobe, u)
+    }
+
+    fn flags(&self) -> BsdfFlags {
+        self.bsdf_flags()
+    }
+
+    fn eval_pdf_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        wi: &[Vec3],
+        out: &mut [(Rgb, f32)],
+    ) {
+        eval_pdf_in_lanes(self, ctx, wo, wi, out);
+    }
+
+    fn sample_batch(
+        &self,
+        ctx: &[BsdfContext],
+        wo: &[Vec3],
+        u: &[(f32, Vec2)],
+        out: &mut [Option<BsdfSample>],
+    ) {
+        sample_in_lanes(self, ctx, wo, u, out);
     }
 }
 

@@ -6,7 +6,6 @@
 
 use crate::bsdf::{
     Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes, Side,
-    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
 };
 use crate::math::Rgb;
 use crate::math::lanes::{Lanes, V3};
@@ -31,6 +30,12 @@ pub struct DiffuseTransmitter {
 
 impl BsdfLanes for DiffuseTransmitter {
     type Params<L: Lanes> = ();
+
+    const READS_CONTEXT: bool = false;
+
+    fn bsdf_flags(&self) -> BsdfFlags {
+        BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::DIFFUSE_TRANSMISSION
+    }
 
     #[inline(always)]
     fn params_lanes<L: Lanes>(&self, _ctx: &BsdfContextLanes<L>) {}
@@ -74,48 +79,6 @@ impl BsdfLanes for DiffuseTransmitter {
         wi.z = L::select(through, -wi.z, wi.z);
         let viewer_above = wo.z.gt(L::splat(0.0));
         BsdfSampleLanes::from_pdf(viewer_above, wi, self.eval_pdf_lanes(params, ctx, wo, wi))
-    }
-}
-
-impl Bsdf for DiffuseTransmitter {
-    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
-        self.eval_pdf(ctx, wo, wi).0
-    }
-
-    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(ctx, wo, wi).1
-    }
-
-    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        eval_pdf_one(self, ctx, wo, wi)
-    }
-
-    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_one(self, ctx, wo, u_lobe, u)
-    }
-
-    fn eval_pdf_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        wi: &[Vec3],
-        out: &mut [(Rgb, f32)],
-    ) {
-        eval_pdf_in_lanes(self, ctx, wo, wi, out);
-    }
-
-    fn sample_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        u: &[(f32, Vec2)],
-        out: &mut [Option<BsdfSample>],
-    ) {
-        sample_in_lanes(self, ctx, wo, u, out);
-    }
-
-    fn flags(&self) -> BsdfFlags {
-        BsdfFlags::DIFFUSE_REFLECTION | BsdfFlags::DIFFUSE_TRANSMISSION
     }
 }
 

@@ -135,6 +135,9 @@ pub trait RgbSource: Send + Sync + 'static {
     /// Whether it varies over the surface (a texture): the BSDF's flags then include
     /// [`BsdfFlags::SPATIALLY_VARYING`](crate::bsdf::BsdfFlags::SPATIALLY_VARYING).
     fn varies(&self) -> bool;
+    /// Whether a value of this type may vary (`false` for the plain constant): a BSDF generic
+    /// over its sources tells its [`BsdfLanes::READS_CONTEXT`](crate::bsdf::BsdfLanes::READS_CONTEXT) with it.
+    const MAY_VARY: bool;
 }
 
 /// [`RgbSource`] for a number parameter (a roughness).
@@ -148,9 +151,13 @@ pub trait FloatSource: Send + Sync + 'static {
     }
     /// Whether it varies over the surface (a texture).
     fn varies(&self) -> bool;
+    /// Whether a value of this type may vary (`false` for the plain constant).
+    const MAY_VARY: bool;
 }
 
 impl RgbSource for Rgb {
+    const MAY_VARY: bool = false;
+
     #[inline(always)]
     fn at<L: Lanes>(&self, _uv: V2<L>) -> V3<L> {
         V3::splat(*self)
@@ -161,6 +168,8 @@ impl RgbSource for Rgb {
 }
 
 impl FloatSource for f32 {
+    const MAY_VARY: bool = false;
+
     #[inline(always)]
     fn at<L: Lanes>(&self, _uv: V2<L>) -> L {
         L::splat(*self)
@@ -171,6 +180,8 @@ impl FloatSource for f32 {
 }
 
 impl RgbSource for Textured<Rgb> {
+    const MAY_VARY: bool = true;
+
     #[inline(always)]
     fn at<L: Lanes>(&self, uv: V2<L>) -> V3<L> {
         match self {
@@ -184,6 +195,8 @@ impl RgbSource for Textured<Rgb> {
 }
 
 impl FloatSource for Textured<f32> {
+    const MAY_VARY: bool = true;
+
     #[inline(always)]
     fn at<L: Lanes>(&self, uv: V2<L>) -> L {
         match self {

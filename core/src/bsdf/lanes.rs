@@ -1,7 +1,7 @@
 //! The BSDF interface over [`Lanes`]: a BSDF writes `eval_pdf` and `sample` once
-//! ([`BsdfLanes`]) and runs them on one sample (`f32`) for its scalar methods and on four or
-//! eight for its batch methods ([`eval_pdf_in_lanes`], [`sample_in_lanes`]), with the same
-//! operations in each lane, so that the results agree bit for bit.
+//! ([`BsdfLanes`]) and is a [`Bsdf`](super::Bsdf) by that alone, whose scalar methods run them on one
+//! sample (`f32`) and whose batch methods on four or eight, with the same operations in each
+//! lane, so that the results agree bit for bit.
 //!
 //! The lanes need not share a shading point: each lane has its context ([`BsdfContextLanes`])
 //! and its parameters resolved at that context ([`BsdfLanes::Params`], a textured reflectance
@@ -9,6 +9,7 @@
 //! parameters are splats, resolved once per batch.
 
 use super::context::{BsdfContext, Side};
+use super::flags::BsdfFlags;
 use super::sample::BsdfSample;
 use crate::math::Rgb;
 use crate::math::lanes::{LaneKernel, Lanes, Mask, V2, V3, by_groups, with_widest_lanes};
@@ -148,8 +149,8 @@ impl<L: Lanes> BsdfSampleLanes<L> {
 }
 
 /// A BSDF whose `eval_pdf` and `sample` are written over [`Lanes`], once for the scalar
-/// methods (`f32`: [`eval_pdf_one`], [`sample_one`]) and the batch ones ([`eval_pdf_in_lanes`],
-/// [`sample_in_lanes`], as many lanes wide as the processor has).
+/// methods of its [`Bsdf`](super::Bsdf) (on `f32`) and the batch ones (as many lanes wide as the processor
+/// has): every `BsdfLanes` is a [`Bsdf`](super::Bsdf), through the one implementation in `bsdf.rs`.
 ///
 /// A kernel is given each lane's context and the BSDF's parameters resolved at it
 /// ([`params_lanes`](Self::params_lanes)): for the samples of one shading point both are the
@@ -157,10 +158,20 @@ impl<L: Lanes> BsdfSampleLanes<L> {
 /// them per lane. A parameter given as a constant resolves to a splat of it (no lookup, no
 /// call); one given as a texture to its values at the lanes' uv
 /// ([`RgbSource`](crate::texture::RgbSource)).
-pub trait BsdfLanes {
+pub trait BsdfLanes: Send + Sync {
     /// The parameters that may differ from one shading point to the next (textured ones),
     /// resolved in lanes; `()` for a BSDF whose parameters are all constant.
     type Params<L: Lanes>: Copy;
+
+    /// Whether the kernels depend on their contexts (a textured parameter's uv, the side).
+    /// `false` for a BSDF whose parameters are constants and that is the same from both
+    /// sides: a batch over several shading points then runs it with one context for all,
+    /// its parameters resolved once, rather than gathering each group's contexts.
+    const READS_CONTEXT: bool = true;
+
+    /// Its lobes, and [`BsdfFlags::SPATIALLY_VARYING`] where a parameter is textured: what its
+    /// [`Bsdf::flags`](super::Bsdf::flags) returns.
+    fn bsdf_flags(&self) -> BsdfFlags;
 
     /// The parameters at each lane's context.
     fn params_lanes<L: Lanes>(&self, ctx: &BsdfContextLanes<L>) -> Self::Params<L>;
@@ -186,10 +197,9 @@ pub trait BsdfLanes {
     ) -> BsdfSampleLanes<L>;
 }
 
-/// [`Bsdf::eval_pdf`](super::Bsdf::eval_pdf) of a BSDF written over [`Lanes`]: its formula on
-/// one lane.
+/// [`Bsdf::eval_pdf`](super::Bsdf::eval_pdf) of a BSDF written over [`Lanes`]: its formula on one lane.
 #[inline(always)]
-pub fn eval_pdf_one<B: BsdfLanes + ?Sized>(
+pub(super) fn eval_pdf_one<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &BsdfContext,
     wo: Vec3,
@@ -201,10 +211,9 @@ pub fn eval_pdf_one<B: BsdfLanes + ?Sized>(
     (value.lane(0), pdf)
 }
 
-/// [`Bsdf::sample`](super::Bsdf::sample) of a BSDF written over [`Lanes`]: its formula on one
-/// lane.
+/// [`Bsdf::sample`](super::Bsdf::sample) of a BSDF written over [`Lanes`]: its formula on one lane.
 #[inline(always)]
-pub fn sample_one<B: BsdfLanes + ?Sized>(
+pub(super) fn sample_one<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &BsdfContext,
     wo: Vec3,
@@ -235,14 +244,15 @@ fn group_context<B: BsdfLanes + ?Sized, L: Lanes, const W: usize>(
     }
 }
 
-/// The context and parameters of a batch whose elements share one context, resolved once.
+/// The context and parameters of a batch whose elements share one context (or of a BSDF that
+/// reads none), resolved once.
 #[inline(always)]
 fn single_context<B: BsdfLanes + ?Sized, L: Lanes>(
     bsdf: &B,
     ctx: &[BsdfContext],
 ) -> Option<(B::Params<L>, BsdfContextLanes<L>)> {
     match ctx {
-        [one] => {
+        [one, ..] if ctx.len() == 1 || !B::READS_CONTEXT => {
             let ctx = BsdfContextLanes::splat(one);
             Some((bsdf.params_lanes(&ctx), ctx))
         }
@@ -250,10 +260,10 @@ fn single_context<B: BsdfLanes + ?Sized, L: Lanes>(
     }
 }
 
-/// [`Bsdf::eval_pdf_batch`](super::Bsdf::eval_pdf_batch) for a BSDF written over [`Lanes`]:
-/// four or eight pairs at a time ([`with_widest_lanes`]).
+/// [`Bsdf::eval_pdf_batch`](super::Bsdf::eval_pdf_batch) for a BSDF written over [`Lanes`]: four or eight pairs at a time
+/// ([`with_widest_lanes`]).
 #[inline(always)]
-pub fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
+pub(super) fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &[BsdfContext],
     wo: &[Vec3],
@@ -315,10 +325,10 @@ pub fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
     });
 }
 
-/// [`Bsdf::sample_batch`](super::Bsdf::sample_batch) for a BSDF written over [`Lanes`]: four
-/// or eight samples at a time ([`with_widest_lanes`]).
+/// [`Bsdf::sample_batch`](super::Bsdf::sample_batch) for a BSDF written over [`Lanes`]: four or eight samples at a time
+/// ([`with_widest_lanes`]).
 #[inline(always)]
-pub fn sample_in_lanes<B: BsdfLanes + ?Sized>(
+pub(super) fn sample_in_lanes<B: BsdfLanes + ?Sized>(
     bsdf: &B,
     ctx: &[BsdfContext],
     wo: &[Vec3],

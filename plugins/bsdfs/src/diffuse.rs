@@ -7,11 +7,7 @@
 //!
 //! Reflection only: directions below the shading horizon (`wi.z ≤ 0`) get zero.
 
-use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{
-    Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
-    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
-};
+use lumis_core::bsdf::{Bsdf, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSampleLanes};
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::{Lanes, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
@@ -36,6 +32,18 @@ impl<R: RgbSource> Diffuse<R> {
 impl<R: RgbSource> BsdfLanes for Diffuse<R> {
     /// The reflectance at each lane's point.
     type Params<L: Lanes> = V3<L>;
+
+    /// Only a textured reflectance reads the uv; the side is never read.
+    const READS_CONTEXT: bool = R::MAY_VARY;
+
+    fn bsdf_flags(&self) -> BsdfFlags {
+        let varying = if self.reflectance.varies() {
+            BsdfFlags::SPATIALLY_VARYING
+        } else {
+            BsdfFlags::NONE
+        };
+        BsdfFlags::DIFFUSE_REFLECTION | varying
+    }
 
     #[inline(always)]
     fn params_lanes<L: Lanes>(&self, ctx: &BsdfContextLanes<L>) -> V3<L> {
@@ -74,53 +82,6 @@ impl<R: RgbSource> BsdfLanes for Diffuse<R> {
         let wi = square_to_cosine_hemisphere_lanes(u0, u1);
         let pdf = cosine_hemisphere_pdf_lanes(wi.z);
         BsdfSampleLanes::new(!wo.z.le(zero) & pdf.gt(zero), wi, pdf, *reflectance)
-    }
-}
-
-impl<R: RgbSource> Bsdf for Diffuse<R> {
-    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
-        self.eval_pdf(ctx, wo, wi).0
-    }
-
-    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(ctx, wo, wi).1
-    }
-
-    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        eval_pdf_one(self, ctx, wo, wi)
-    }
-
-    fn sample(&self, ctx: &BsdfContext, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_one(self, ctx, wo, 0.0, u)
-    }
-
-    fn eval_pdf_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        wi: &[Vec3],
-        out: &mut [(Rgb, f32)],
-    ) {
-        eval_pdf_in_lanes(self, ctx, wo, wi, out);
-    }
-
-    fn sample_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        u: &[(f32, Vec2)],
-        out: &mut [Option<BsdfSample>],
-    ) {
-        sample_in_lanes(self, ctx, wo, u, out);
-    }
-
-    fn flags(&self) -> BsdfFlags {
-        let varying = if self.reflectance.varies() {
-            BsdfFlags::SPATIALLY_VARYING
-        } else {
-            BsdfFlags::NONE
-        };
-        BsdfFlags::DIFFUSE_REFLECTION | varying
     }
 }
 

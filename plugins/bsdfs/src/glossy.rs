@@ -22,11 +22,7 @@
 
 pub use crate::microfacet::Masking;
 use crate::microfacet::{Ggx, Microfacet, reflect};
-use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{
-    Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
-    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
-};
+use lumis_core::bsdf::{Bsdf, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSampleLanes};
 use lumis_core::math::lanes::{Lanes, Mask, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
 use lumis_core::math::{Rgb, luminance, luminance_lanes};
@@ -174,6 +170,16 @@ impl BsdfLanes for Glossy {
     /// Every parameter is a constant.
     type Params<L: Lanes> = ();
 
+    const READS_CONTEXT: bool = false;
+
+    fn bsdf_flags(&self) -> BsdfFlags {
+        if self.diffuse == Rgb::ZERO {
+            BsdfFlags::GLOSSY_REFLECTION
+        } else {
+            BsdfFlags::GLOSSY_REFLECTION | BsdfFlags::DIFFUSE_REFLECTION
+        }
+    }
+
     #[inline(always)]
     fn params_lanes<L: Lanes>(&self, _ctx: &BsdfContextLanes<L>) {}
 
@@ -215,53 +221,6 @@ impl BsdfLanes for Glossy {
         };
         let above = !wo.z.le(L::splat(0.0));
         BsdfSampleLanes::from_pdf(above, wi, self.eval_pdf_lanes(params, ctx, wo, wi))
-    }
-}
-
-impl Bsdf for Glossy {
-    fn eval(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
-        self.value(&self.pair::<f32>(V3::splat(wo), V3::splat(wi)))
-            .lane(0)
-    }
-
-    fn pdf(&self, _ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
-        self.density(&self.pair::<f32>(V3::splat(wo), V3::splat(wi)))
-    }
-
-    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        eval_pdf_one(self, ctx, wo, wi)
-    }
-
-    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_one(self, ctx, wo, u_lobe, u)
-    }
-
-    fn eval_pdf_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        wi: &[Vec3],
-        out: &mut [(Rgb, f32)],
-    ) {
-        eval_pdf_in_lanes(self, ctx, wo, wi, out);
-    }
-
-    fn sample_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        u: &[(f32, Vec2)],
-        out: &mut [Option<BsdfSample>],
-    ) {
-        sample_in_lanes(self, ctx, wo, u, out);
-    }
-
-    fn flags(&self) -> BsdfFlags {
-        if self.diffuse == Rgb::ZERO {
-            BsdfFlags::GLOSSY_REFLECTION
-        } else {
-            BsdfFlags::GLOSSY_REFLECTION | BsdfFlags::DIFFUSE_REFLECTION
-        }
     }
 }
 

@@ -24,11 +24,8 @@
 //! scene asks for with `one_sided: true` (the importer writes it).
 
 use crate::fresnel;
-use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{
-    Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
-    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
-};
+use glam::Vec2;
+use lumis_core::bsdf::{Bsdf, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSampleLanes};
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::{Lanes, Mask, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
@@ -119,6 +116,17 @@ impl Plastic {
 impl BsdfLanes for Plastic {
     type Params<L: Lanes> = Reflectances<L>;
 
+    fn bsdf_flags(&self) -> BsdfFlags {
+        let varying = self.diffuse.varies() || self.specular.varies();
+        BsdfFlags::DELTA_REFLECTION
+            | BsdfFlags::DIFFUSE_REFLECTION
+            | if varying {
+                BsdfFlags::SPATIALLY_VARYING
+            } else {
+                BsdfFlags::NONE
+            }
+    }
+
     #[inline(always)]
     fn params_lanes<L: Lanes>(&self, ctx: &BsdfContextLanes<L>) -> Reflectances<L> {
         Reflectances {
@@ -189,55 +197,6 @@ impl BsdfLanes for Plastic {
             V3::select(specular, delta_weight, d.weight),
         )
         .with_delta(specular)
-    }
-}
-
-impl Bsdf for Plastic {
-    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
-        self.eval_pdf(ctx, wo, wi).0
-    }
-
-    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(ctx, wo, wi).1
-    }
-
-    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        eval_pdf_one(self, ctx, wo, wi)
-    }
-
-    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_one(self, ctx, wo, u_lobe, u)
-    }
-
-    fn eval_pdf_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        wi: &[Vec3],
-        out: &mut [(Rgb, f32)],
-    ) {
-        eval_pdf_in_lanes(self, ctx, wo, wi, out);
-    }
-
-    fn sample_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        u: &[(f32, Vec2)],
-        out: &mut [Option<BsdfSample>],
-    ) {
-        sample_in_lanes(self, ctx, wo, u, out);
-    }
-
-    fn flags(&self) -> BsdfFlags {
-        let varying = self.diffuse.varies() || self.specular.varies();
-        BsdfFlags::DELTA_REFLECTION
-            | BsdfFlags::DIFFUSE_REFLECTION
-            | if varying {
-                BsdfFlags::SPATIALLY_VARYING
-            } else {
-                BsdfFlags::NONE
-            }
     }
 }
 

@@ -37,11 +37,8 @@ use crate::plastic::{
     internal_scattering, read_eta, specular_weight,
 };
 use crate::roughconductor::{DISTRIBUTION, DISTRIBUTION_SPEC, GGX};
-use glam::{Vec2, Vec3};
-use lumis_core::bsdf::{
-    Bsdf, BsdfContext, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSample, BsdfSampleLanes,
-    eval_pdf_in_lanes, eval_pdf_one, sample_in_lanes, sample_one,
-};
+use glam::Vec3;
+use lumis_core::bsdf::{Bsdf, BsdfContextLanes, BsdfFlags, BsdfLanes, BsdfSampleLanes};
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::{Lanes, Mask, V3};
 use lumis_core::math::warp::{cosine_hemisphere_pdf_lanes, square_to_cosine_hemisphere_lanes};
@@ -203,6 +200,17 @@ impl<D: Distribution> RoughPlastic<D> {
 impl<D: Distribution> BsdfLanes for RoughPlastic<D> {
     type Params<L: Lanes> = Reflectances<L>;
 
+    fn bsdf_flags(&self) -> BsdfFlags {
+        let varying = self.diffuse.varies() || self.specular.varies();
+        BsdfFlags::GLOSSY_REFLECTION
+            | BsdfFlags::DIFFUSE_REFLECTION
+            | if varying {
+                BsdfFlags::SPATIALLY_VARYING
+            } else {
+                BsdfFlags::NONE
+            }
+    }
+
     #[inline(always)]
     fn params_lanes<L: Lanes>(&self, ctx: &BsdfContextLanes<L>) -> Reflectances<L> {
         Reflectances {
@@ -276,55 +284,6 @@ impl<D: Distribution> BsdfLanes for RoughPlastic<D> {
         };
         let above = !wo.z.le(L::splat(0.0));
         BsdfSampleLanes::from_pdf(above, wi, self.eval_pdf_lanes(p, ctx, wo, wi))
-    }
-}
-
-impl<D: Distribution> Bsdf for RoughPlastic<D> {
-    fn eval(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> Rgb {
-        self.eval_pdf(ctx, wo, wi).0
-    }
-
-    fn pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(ctx, wo, wi).1
-    }
-
-    fn eval_pdf(&self, ctx: &BsdfContext, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        eval_pdf_one(self, ctx, wo, wi)
-    }
-
-    fn sample(&self, ctx: &BsdfContext, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        sample_one(self, ctx, wo, u_lobe, u)
-    }
-
-    fn eval_pdf_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        wi: &[Vec3],
-        out: &mut [(Rgb, f32)],
-    ) {
-        eval_pdf_in_lanes(self, ctx, wo, wi, out);
-    }
-
-    fn sample_batch(
-        &self,
-        ctx: &[BsdfContext],
-        wo: &[Vec3],
-        u: &[(f32, Vec2)],
-        out: &mut [Option<BsdfSample>],
-    ) {
-        sample_in_lanes(self, ctx, wo, u, out);
-    }
-
-    fn flags(&self) -> BsdfFlags {
-        let varying = self.diffuse.varies() || self.specular.varies();
-        BsdfFlags::GLOSSY_REFLECTION
-            | BsdfFlags::DIFFUSE_REFLECTION
-            | if varying {
-                BsdfFlags::SPATIALLY_VARYING
-            } else {
-                BsdfFlags::NONE
-            }
     }
 }
 

@@ -20,7 +20,8 @@ pub(crate) struct BatchScratch {
     pub(crate) owners: Vec<usize>,
     /// ωo of each entry's shading point.
     pub(crate) wo: Vec<Vec3>,
-    /// The BSDF context of each entry's shading point.
+    /// The BSDF context of each entry's shading point, or one for all the entries when their
+    /// points share it.
     pub(crate) contexts: Vec<BsdfContext>,
     pub(crate) bsdf_numbers: Vec<(f32, Vec2)>,
     pub(crate) bsdf_samples: Vec<Option<BsdfSample>>,
@@ -80,7 +81,7 @@ impl BatchScratch {
         self.bsdf_samples.resize(self.bsdf_numbers.len(), None);
         for_runs(&self.owners, &bsdf_of, |bsdf, run| {
             bsdf.sample_batch(
-                &self.contexts[run.clone()],
+                contexts_of(&self.contexts, run.clone()),
                 &self.wo[run.clone()],
                 &self.bsdf_numbers[run.clone()],
                 &mut self.bsdf_samples[run],
@@ -115,12 +116,22 @@ impl BatchScratch {
         self.values.resize(n, (Rgb::ZERO, 0.0));
         for_runs(&self.owners, &|owner| point_of(owner).bsdf, |bsdf, run| {
             bsdf.eval_pdf_batch(
-                &self.contexts[run.clone()],
+                contexts_of(&self.contexts, run.clone()),
                 &self.wo[run.clone()],
                 &self.directions[run.clone()],
                 &mut self.values[run],
             );
         });
+    }
+}
+
+/// The contexts of the entries `run`: the one every entry shares where `contexts` holds one,
+/// else theirs.
+fn contexts_of(contexts: &[BsdfContext], run: std::ops::Range<usize>) -> &[BsdfContext] {
+    if contexts.len() == 1 {
+        contexts
+    } else {
+        &contexts[run]
     }
 }
 

@@ -18,6 +18,7 @@ use crate::phase::{Observer, Phase, PhaseRole, SampleSplit};
 use crate::shading_point::ShadingPoint;
 use crate::weighting::Weighting;
 use glam::UVec2;
+use lumis_core::bsdf::BsdfContext;
 use lumis_core::emitter::ReferencePoint;
 use lumis_core::geometry::PACKET_SIZE;
 use lumis_core::math::Rgb;
@@ -291,8 +292,12 @@ impl<'a> LightSampling<'a> {
         else {
             return;
         };
+        // One context for every entry where the points share theirs (the same side, no
+        // texture coordinates): the batch calls then take it once instead of one per entry.
+        let shared = shared_context(samplings);
         BatchScratch::with_thread_local(|scratch| {
             scratch.clear();
+            scratch.contexts.extend(shared);
             for (k, sampling) in samplings.iter_mut().enumerate() {
                 let Some(sampling) = sampling else { continue };
                 let split = splits[k];
@@ -302,7 +307,9 @@ impl<'a> LightSampling<'a> {
                     let numbers = (sampling.sampler.next_1d(), sampling.sampler.next_2d());
                     scratch.owners.push(k);
                     scratch.wo.push(sampling.point.wo);
-                    scratch.contexts.push(sampling.point.ctx);
+                    if shared.is_none() {
+                        scratch.contexts.push(sampling.point.ctx);
+                    }
                     scratch.bsdf_numbers.push(numbers);
                 }
             }
@@ -322,12 +329,15 @@ impl<'a> LightSampling<'a> {
             scratch.owners.clear();
             scratch.wo.clear();
             scratch.contexts.clear();
+            scratch.contexts.extend(shared);
             for (k, sampling) in samplings.iter_mut().enumerate() {
                 let Some(sampling) = sampling else { continue };
                 for _ in 0..splits[k].n_light {
                     scratch.owners.push(k);
                     scratch.wo.push(sampling.point.wo);
-                    scratch.contexts.push(sampling.point.ctx);
+                    if shared.is_none() {
+                        scratch.contexts.push(sampling.point.ctx);
+                    }
                     scratch.references.push(ReferencePoint {
                         position: sampling.point.hit.position,
                     });
@@ -467,4 +477,12 @@ fn densities_for<W: Weighting + ?Sized>(weighting: &W) -> Densities {
     } else {
         Densities::Lit
     }
+}
+
+/// The BSDF context of every point of `samplings` if they all have the same one (the common
+/// case of a packet of one surface seen from one side, untextured).
+fn shared_context(samplings: &[Option<LightSampling>]) -> Option<BsdfContext> {
+    let mut contexts = samplings.iter().flatten().map(|s| s.point.ctx);
+    let first = contexts.next()?;
+    contexts.all(|ctx| ctx == first).then_some(first)
 }
