@@ -47,3 +47,25 @@ def test_bad_settings_are_refused():
         scene.render(target_error=-1.0)
     with pytest.raises(ValueError):
         scene.render(target_error=0.1, spp=4)
+
+
+def test_per_pixel_budgets_give_the_clis_image_and_need_passes(cli, tmp_path):
+    path = str(SCENES / "veach.ron")
+    args = ["render", path, "--quiet", "--spp", "16", "--passes", "4", "--budgets", "per-pixel"]
+    for o in OVERRIDES:
+        args += ["--set", o]
+    out = run_cli(cli, *args, "-o", str(tmp_path / "cli.exr"), cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+
+    scene = lumis.load(path, overrides=OVERRIDES)
+    result = scene.render(spp=16, passes=4, budgets="per-pixel")
+    result.write(tmp_path / "py.exr")
+    assert (tmp_path / "py.png").read_bytes() == (tmp_path / "cli.png").read_bytes()
+    assert np.isfinite(result["color"]).all()
+    # Per-pixel budgets spread the same samples differently from uniform passes.
+    uniform = scene.render(spp=16, passes=4)
+    assert not np.array_equal(uniform["color"], result["color"])
+    with pytest.raises(ValueError, match="per-pixel"):
+        scene.render(spp=16, budgets="per-pixel")
+    with pytest.raises(ValueError):
+        scene.render(spp=16, passes=4, budgets="sideways")

@@ -58,6 +58,7 @@ def test_render_signature_has_keyword_parameters():
         "max_spp",
         "max_time",
         "on_pass",
+        "budgets",
         "params",
     ]
     assert parameters["params"].kind is inspect.Parameter.VAR_KEYWORD
