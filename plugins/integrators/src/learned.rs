@@ -86,6 +86,14 @@ impl AlphaMap {
             .get((y * w.width + x) as usize * self.lights + light)?;
         a.is_finite().then_some(a as f64)
     }
+
+    /// The α a sample at `sampling`'s pixel and light is drawn with: the map's, or the even
+    /// split where it has none, in `clamp`.
+    pub fn at(&self, sampling: &LightSampling, clamp: [f64; 2]) -> f64 {
+        self.get(sampling.pixel(), sampling.light())
+            .unwrap_or(0.5)
+            .clamp(clamp[0], clamp[1])
+    }
 }
 
 /// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative.
@@ -211,11 +219,7 @@ impl Allocation for LearnedAlpha {
         sampling: &mut LightSampling,
         weighting: &W,
     ) -> LightEstimate {
-        let alpha = self
-            .alphas
-            .get(sampling.pixel(), sampling.light())
-            .unwrap_or(0.5)
-            .clamp(self.clamp[0], self.clamp[1]);
+        let alpha = self.alphas.at(sampling, self.clamp);
         let split = SampleSplit::new(alpha, self.samples);
         let value = sampling.phase(split, PhaseRole::ESTIMATE, weighting, &mut ());
         LightEstimate { value, alpha }

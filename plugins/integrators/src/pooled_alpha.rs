@@ -160,11 +160,7 @@ impl Allocation for PooledAlpha {
         sampling: &mut LightSampling,
         weighting: &W,
     ) -> LightEstimate {
-        let alpha = self
-            .alphas
-            .get(sampling.pixel(), sampling.light())
-            .unwrap_or(0.5)
-            .clamp(self.clamp[0], self.clamp[1]);
+        let alpha = self.alphas.at(sampling, self.clamp);
         let value = self.estimates.reuse_at_camera_sample_zero(
             sampling,
             self.samples,
