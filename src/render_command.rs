@@ -108,7 +108,8 @@ pub struct RenderArgs {
     /// for all) [default], or `per-pixel`: in proportion to the square root of each pixel's
     /// variance per sample (relative for --metric relmse) measured on the passes before, with a
     /// floor and a dilation; still unbiased (docs/integrators.md, "Per-pixel budgets"). Needs
-    /// passes of even sizes; not with --shard or --resume.
+    /// passes of even sizes; not with --shard or --resume (such a render cannot be resumed);
+    /// --replay reads it from the EXR.
     #[arg(long, value_name = "B")]
     budgets: Option<String>,
 }
@@ -152,10 +153,26 @@ fn settings(args: &RenderArgs, spp: u32) -> Result<Option<Settings>> {
 /// the passes before (so every pass has an even number of samples), and decide each pass from
 /// the whole image's sums (so not per shard, nor from the sums of a pass cut short).
 fn budgets(args: &RenderArgs, settings: Option<&Settings>) -> Result<Budgets> {
-    let Some(name) = args.budgets.as_deref() else {
-        return Ok(Budgets::Uniform);
-    };
-    let budgets = Budgets::parse(name).map_err(anyhow::Error::msg)?;
+    let asked = args
+        .budgets
+        .as_deref()
+        .map(Budgets::parse)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    // A replay renders the recorded passes with the budgets recorded beside them.
+    let recorded = args.replay.as_deref().map(replayed_budgets).transpose()?;
+    if let (Some(asked), Some(recorded), Some(exr)) = (asked, recorded, &args.replay)
+        && asked != recorded
+    {
+        bail!(
+            "cannot replay `{}`: it was rendered with --budgets {}, this render asks for {}",
+            exr.display(),
+            recorded.name(),
+            asked.name()
+        );
+    }
+    let budgets = asked.or(recorded).unwrap_or_default();
+    let name = budgets.name();
     if budgets == Budgets::Uniform {
         return Ok(budgets);
     }
@@ -170,9 +187,25 @@ fn budgets(args: &RenderArgs, settings: Option<&Settings>) -> Result<Budgets> {
         );
     }
     if args.shard.is_some() || args.resume.is_some() {
-        bail!("--budgets {name} cannot be combined with --shard or --resume");
+        let given = match (asked, &args.replay) {
+            (None, Some(exr)) => format!(" (recorded in `{}`)", exr.display()),
+            _ => String::new(),
+        };
+        bail!("--budgets {name}{given} cannot be combined with --shard or --resume");
     }
     Ok(budgets)
+}
+
+/// The EXR metadata key of a render's budgets, written when they are not uniform.
+const BUDGETS_KEY: &str = "budgets";
+
+/// The budgets the EXR at `path` was rendered with (uniform if it records none).
+fn replayed_budgets(path: &Path) -> Result<Budgets> {
+    let metadata = image_io::read_exr_metadata(path).map_err(anyhow::Error::msg)?;
+    let Some((_, name)) = metadata.iter().find(|(k, _)| k == BUDGETS_KEY) else {
+        return Ok(Budgets::Uniform);
+    };
+    Budgets::parse(name).map_err(|e| anyhow::anyhow!("cannot replay `{}`: {e}", path.display()))
 }
 
 /// The passes recorded in the EXR at `path`.
@@ -287,6 +320,13 @@ fn resumed_state(
             path.display(),
             settings_text(&file.settings),
             settings_text(settings)
+        );
+    }
+    if file.budgets != Budgets::Uniform {
+        bail!(
+            "`{}` is a render with --budgets {}, which cannot be resumed: each pass's per-pixel samples are decided from the whole image's sums before it, and the pass cut short has changed them. Render it again",
+            path.display(),
+            file.budgets.name()
         );
     }
     if file.shard != Shard::WHOLE {
@@ -726,7 +766,7 @@ fn render_in_passes(
     let film = state
         .sums
         .resolve(&loaded.scene, loaded.integrator.as_ref());
-    let metadata = render_files::passes_metadata(
+    let mut metadata = render_files::passes_metadata(
         &args.scene.display().to_string(),
         integrator,
         loaded.scene.seed,
@@ -734,6 +774,10 @@ fn render_in_passes(
         settings,
         &state.history,
     );
+    // `--replay` reads it: the passes' per-pixel samples are decided again as they were.
+    if scope.budgets != Budgets::Uniform {
+        metadata.push((BUDGETS_KEY.to_string(), scope.budgets.name().to_string()));
+    }
     let written = render_files::write(&film, &exr_path, exposure, &metadata)?;
     if let Some(metric) = heat_map {
         image_io::write_atomically(
@@ -754,11 +798,21 @@ fn render_in_passes(
             shard: Shard::WHOLE,
             stats: outcome.stats,
             settings: settings.clone(),
+            budgets: scope.budgets,
             state: state.clone(),
         }
         .write(&saved)?;
+        let next = if scope.budgets == Budgets::Uniform {
+            format!("continue it with `{}`", resume_command(&saved))
+        } else {
+            format!(
+                "a render with --budgets {} cannot be resumed (its state is in {}): render it again",
+                scope.budgets.name(),
+                saved.display()
+            )
+        };
         eprintln!(
-            "interrupted: wrote a partial image ({} of its passes{}) to {} after {}; continue it with `{}`",
+            "interrupted: wrote a partial image ({} of its passes{}) to {} after {}; {next}",
             state.history.passes.len(),
             if state.current.is_some() {
                 " and part of the next"
@@ -767,7 +821,6 @@ fn render_in_passes(
             },
             exr_path.display(),
             interrupt::signal_name(),
-            resume_command(&saved)
         );
         std::process::exit(interrupt::exit_code());
     }
@@ -881,6 +934,7 @@ fn render_shard(
         shard,
         stats,
         settings: Settings::samples(spp),
+        budgets: Budgets::Uniform,
         state: RenderState {
             sums,
             history: passes::History {
@@ -976,6 +1030,7 @@ fn render_shard_pass(
         shard,
         stats: outcome.stats,
         settings: settings.clone(),
+        budgets: Budgets::Uniform,
         state: state.clone(),
     }
     .write(&path)?;

@@ -12,6 +12,7 @@
 use crate::binary::{Reader, Writer};
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
+use lumis_core::budgets::Budgets;
 use lumis_core::error_estimate::{ErrorEstimate, Metric};
 use lumis_core::output::Window;
 use lumis_core::passes::{History, PassRecord, PlannedPass, Settings, Stop, Stopping};
@@ -21,7 +22,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 const MAGIC: &[u8; 8] = b"LUMISSHD";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 const WHAT: &str = "render shard";
 
 /// One shard of a render, or a whole render's state, as written by `lumis render --shard` and
@@ -42,6 +43,8 @@ pub struct ShardFile {
     pub shard: Shard,
     pub stats: RenderStats,
     pub settings: Settings,
+    /// How the render's passes spread their samples over the pixels (a shard's are uniform).
+    pub budgets: Budgets,
     pub state: RenderState,
 }
 
@@ -199,6 +202,10 @@ impl ShardFile {
         w.u32(s.tiles_done);
         w.u32(s.tiles_total);
         write_settings(&mut w, &self.settings);
+        w.u32(match self.budgets {
+            Budgets::Uniform => 0,
+            Budgets::PerPixel => 1,
+        });
         let f = &self.state.sums;
         for v in [
             f.full_width,
@@ -267,6 +274,11 @@ impl ShardFile {
             tiles_total: r.u32("the tiles")?,
         };
         let settings = read_settings(&mut r)?;
+        let budgets = match r.u32("the budgets")? {
+            0 => Budgets::Uniform,
+            1 => Budgets::PerPixel,
+            code => return Err(r.problem(format!("budgets of code {code}"))),
+        };
         let mut size = [0u32; 6];
         for v in &mut size {
             *v = r.u32("the film's size")?;
@@ -339,6 +351,7 @@ impl ShardFile {
             shard: Shard { index, count },
             stats,
             settings,
+            budgets,
             state: RenderState {
                 sums: FilmSums {
                     full_width,

@@ -198,3 +198,78 @@ fn the_first_pass_is_balance_and_alpha_reads_only_earlier_passes() {
         );
     }
 }
+
+fn succeeded(output: std::process::Output) -> String {
+    let text = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{text}");
+    text
+}
+
+fn failed(output: std::process::Output) -> String {
+    let text = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(!output.status.success(), "succeeded: {text}");
+    text
+}
+
+/// A render with per-pixel budgets records them: `--replay` renders the same image without
+/// being told them again, and refuses other budgets; its saved state refuses to resume (a pass
+/// cut short has changed the sums its budgets were decided from).
+#[test]
+fn per_pixel_budgets_replay_from_the_exr_and_refuse_to_resume() {
+    let (dir, path) = common::scene_file("scene.ron", common::SMALL_SCENE);
+    let (d, scene) = (dir.path(), path.to_str().unwrap());
+    let passes = ["--passes", "3", "--spp", "6"];
+    let render = |extra: &[&str]| {
+        let mut all = vec!["render", scene, "-q"];
+        all.extend(extra);
+        common::lumis(d, &all)
+    };
+    succeeded(render(
+        &[&passes[..], &["--budgets", "per-pixel", "-o", "b.exr"]].concat(),
+    ));
+    let metadata = lumis::image_io::read_exr_metadata(&d.join("b.exr")).unwrap();
+    assert!(
+        metadata.contains(&("budgets".into(), "per-pixel".into())),
+        "{metadata:?}"
+    );
+    succeeded(render(&["--replay", "b.exr", "-o", "r.exr"]));
+    let channels = |f: &str| lumis::image_io::read_exr_channels(&d.join(f)).unwrap();
+    assert_eq!(channels("b.exr"), channels("r.exr"));
+    // Uniform budgets give another image, so the replay above did read them.
+    succeeded(render(&[&passes[..], &["-o", "u.exr"]].concat()));
+    assert_ne!(channels("b.exr"), channels("u.exr"));
+    let e = failed(render(&[
+        "--replay",
+        "b.exr",
+        "--budgets",
+        "uniform",
+        "-o",
+        "x.exr",
+    ]));
+    assert!(
+        e.contains("it was rendered with --budgets per-pixel"),
+        "{e}"
+    );
+
+    // A saved state of the render, as an interrupt of it writes one.
+    succeeded(render(
+        &[&passes[..], &["--shard", "0/1", "-o", "s.lshard"]].concat(),
+    ));
+    let mut state = lumis::shards::ShardFile::read(&d.join("s.lshard")).unwrap();
+    assert_eq!(state.budgets, Budgets::Uniform);
+    state.budgets = Budgets::PerPixel;
+    state.write(&d.join("p.lshard")).unwrap();
+    assert_eq!(
+        lumis::shards::ShardFile::read(&d.join("p.lshard"))
+            .unwrap()
+            .budgets,
+        Budgets::PerPixel
+    );
+    let e = failed(render(
+        &[&passes[..], &["--resume", "p.lshard", "-o", "x.exr"]].concat(),
+    ));
+    assert!(
+        e.contains("--budgets per-pixel, which cannot be resumed"),
+        "{e}"
+    );
+}

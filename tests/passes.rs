@@ -176,6 +176,7 @@ fn an_interrupted_render_resumes_into_the_same_image() {
             .unwrap()
             .1,
         settings: settings.clone(),
+        budgets: lumis::budgets::Budgets::Uniform,
         state: state.clone(),
     };
     file.write(&saved).unwrap();
@@ -600,7 +601,7 @@ fn resuming_refuses_another_render_and_damaged_files() {
     std::fs::write(d.join("old.lshard"), old).unwrap();
     for (file, expected) in [
         ("short.lshard", "truncated"),
-        ("old.lshard", "format 1; this lumis reads format 2"),
+        ("old.lshard", "format 1; this lumis reads format 3"),
         ("scene.ron", "is not a lumis render shard file"),
         ("none.lshard", "cannot read"),
     ] {

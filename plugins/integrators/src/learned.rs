@@ -268,11 +268,11 @@ impl Allocation for LearnedAlpha {
         let pilot = PilotSamples::new(&phase);
         match self.pooled {
             Pooled::Nodes(objective) => {
-                if !pilot.informative() {
-                    return;
+                let (nodes, count) = out.split_at_mut(NODES);
+                let nodes: &mut [f64; NODES] = nodes.try_into().expect("NODES sums");
+                if pilot.add_objective_at_nodes(objective, self.clamp, nodes) {
+                    count[0] += 1.0;
                 }
-                pilot.add_objective_at_nodes(objective, self.clamp, &mut out[..NODES]);
-                out[NODES] += 1.0;
             }
             Pooled::SecondOrder => {
                 let (i1, i2) = pilot.second_order();

@@ -288,23 +288,92 @@ impl<'a> PilotSamples<'a> {
         if value.is_nan() { f64::INFINITY } else { value }
     }
 
-    /// Adds the objective at `out.len()` evenly spaced α of `clamp` (its ends included) to
-    /// `out`: what a learning allocation keeps per pixel ([`crate::learned`]). m̂ at every α in
-    /// one pass over the records; the other objectives α by α ([`objective`](Self::objective)).
-    pub fn add_objective_at_nodes(&self, objective: Objective, clamp: [f64; 2], out: &mut [f64]) {
-        let step = (clamp[1] - clamp[0]) / (out.len().max(2) - 1) as f64;
+    /// Adds the objective at `K` evenly spaced α of `clamp` (its ends included) to `out`, if
+    /// the pilot is [`informative`](Self::informative) (returned; nothing is added if not):
+    /// what a learning allocation keeps per pixel ([`crate::learned`]). m̂ at every α in one
+    /// pass over the records, with one division per record and one per α: y² / d(α) =
+    /// (f² / p_s) / q_α; the other objectives α by α ([`objective`](Self::objective)).
+    pub fn add_objective_at_nodes<const K: usize>(
+        &self,
+        objective: Objective,
+        clamp: [f64; 2],
+        out: &mut [f64; K],
+    ) -> bool {
+        let step = (clamp[1] - clamp[0]) / (K.max(2) - 1) as f64;
+        let nodes: [f64; K] = std::array::from_fn(|k| clamp[0] + step * k as f64);
         if objective != Objective::Mixture {
-            for (k, v) in out.iter_mut().enumerate() {
-                *v += self.objective(objective, clamp[0] + step * k as f64);
+            if !self.informative() {
+                return false;
             }
-            return;
+            for (v, &alpha) in out.iter_mut().zip(&nodes) {
+                *v += self.objective(objective, alpha);
+            }
+            return true;
         }
-        for (y, r_b, r_l) in self.terms() {
-            let (y2, delta) = (y * y * self.inv_count, r_b - r_l);
-            for (k, v) in out.iter_mut().enumerate() {
-                *v += y2 / (r_l + (clamp[0] + step * k as f64) * delta);
+        // AVX runs the nodes four lanes wide; without FMA, every lane rounds as SSE2's would, so
+        // the sums are the same bit for bit on every processor.
+        #[cfg(target_arch = "x86_64")]
+        let sums = if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the processor has AVX.
+            unsafe { self.second_moments_avx(&nodes) }
+        } else {
+            self.second_moments(&nodes)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let sums = self.second_moments(&nodes);
+        let Some(sums) = sums else {
+            return false;
+        };
+        for (v, s) in out.iter_mut().zip(sums) {
+            *v += s * self.inv_count;
+        }
+        true
+    }
+
+    /// M m̂ at each of `nodes`, if the pilot is [`informative`](Self::informative).
+    #[inline(always)]
+    fn second_moments<const K: usize>(&self, nodes: &[f64; K]) -> Option<[f64; K]> {
+        let mut sums = [0.0; K];
+        let mut informative = false;
+        for r in self.records {
+            let Some((w, p_b, p_l)) = self.weighted_densities(r) else {
+                continue;
+            };
+            informative |= p_b != p_l;
+            let delta = p_b - p_l;
+            for (s, &alpha) in sums.iter_mut().zip(nodes) {
+                *s += w / (p_l + alpha * delta);
             }
         }
+        informative.then_some(sums)
+    }
+
+    /// [`second_moments`](Self::second_moments) compiled for AVX.
+    ///
+    /// # Safety
+    /// The processor must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn second_moments_avx<const K: usize>(&self, nodes: &[f64; K]) -> Option<[f64; K]> {
+        self.second_moments(nodes)
+    }
+
+    /// (f² / p_s, p_B, p_L) of a record, as [`term`](Self::term) filters them: y² / d(α) is
+    /// the first over p_L + α (p_B − p_L) (a Dirac sample's: f_rec² / β over α, as p_B = 1,
+    /// p_L = 0).
+    #[inline(always)]
+    fn weighted_densities(&self, r: &SampleRecord) -> Option<(f64, f64, f64)> {
+        if r.is_black() {
+            return None;
+        }
+        let beta = self.beta;
+        let f = luminance(r.f) as f64;
+        if r.delta {
+            return (beta > 0.0 && f != 0.0).then(|| (f * f / beta, 1.0, 0.0));
+        }
+        let (p_b, p_l) = (r.p_bsdf as f64, r.p_light as f64);
+        let p_s = beta * p_b + (1.0 - beta) * p_l;
+        (p_s > 0.0 && p_s.is_finite() && f != 0.0).then(|| (f * f / p_s, p_b, p_l))
     }
 
     fn objective_value(&self, objective: Objective, alpha: f64) -> f64 {
@@ -438,7 +507,7 @@ mod tests {
         let clamp = [0.025, 0.975];
         for objective in [Objective::Mixture, Objective::Stratified] {
             let mut nodes = [1.0; 17];
-            pilot.add_objective_at_nodes(objective, clamp, &mut nodes);
+            assert!(pilot.add_objective_at_nodes(objective, clamp, &mut nodes));
             for (k, v) in nodes.iter().enumerate() {
                 let expected = 1.0 + pilot.objective(objective, 0.025 + 0.95 * k as f64 / 16.0);
                 assert!(
@@ -520,6 +589,9 @@ mod tests {
         ];
         let pilot = PilotSamples::from_records(&same, 1, 1);
         assert_eq!(pilot.exact_minimum([0.0, 1.0]), None);
+        let mut nodes = [1.0; 5];
+        assert!(!pilot.add_objective_at_nodes(Objective::Mixture, [0.0, 1.0], &mut nodes));
+        assert_eq!(nodes, [1.0; 5]);
         let black = [SampleRecord::grey(0.0, 2.0, 0.0), SampleRecord::default()];
         let pilot = PilotSamples::from_records(&black, 1, 1);
         assert_eq!(pilot.minimise(Objective::Stratified, [0.0, 1.0]), None);
