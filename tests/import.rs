@@ -1040,6 +1040,43 @@ fn files_older_than_mitsuba_2_are_upgraded_with_a_note() {
     drop(dir);
 }
 
+/// In a 0.x file a nested texture's name is upgraded as a property's is (a `roughplastic`'s
+/// `diffuseReflectance` texture is its `diffuse_reflectance`, not a refused object), and
+/// `highQualityEdges`, 0.x's `sample_border`, is noted as ignored.
+#[test]
+fn nested_textures_and_edges_of_files_older_than_mitsuba_2_convert() {
+    let xml = r##"<scene version="0.5.0">
+    <sensor type="perspective">
+        <float name="fov" value="30"/>
+        <film type="hdrfilm">
+            <integer name="width" value="8"/>
+            <integer name="height" value="8"/>
+            <boolean name="highQualityEdges" value="true"/>
+        </film>
+    </sensor>
+    <bsdf type="roughplastic" id="board">
+        <texture name="diffuseReflectance" type="checkerboard"/>
+    </bsdf>
+    <shape type="sphere"><ref id="board"/></shape>
+</scene>
+"##;
+    let (_dir, path) = scene_file("old.xml", xml);
+    let c = convert_at(&path).unwrap();
+    assert_eq!(c.problems, [], "{}", messages(&c.problems));
+    let notes = messages(&c.notes);
+    assert!(notes.contains("old.xml:7: `highQualityEdges`"), "{notes}");
+    let board = &c.description.bsdfs["board"];
+    assert_eq!(board.kind, "roughplastic");
+    assert!(
+        matches!(
+            board.params.get("diffuse_reflectance"),
+            Some(ron::Value::Map(_))
+        ),
+        "{:?}",
+        board.params
+    );
+}
+
 /// The sensor: `focal_length` (and its default, 50 mm, when no `fov` is given) becomes the
 /// field of view Mitsuba derives from it; `focus_distance` on a pinhole is noted and ignored;
 /// a film without `rfilter` gets Mitsuba's Gaussian. Spectra on emitters are read as

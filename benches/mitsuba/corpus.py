@@ -22,6 +22,14 @@ design effect (`design_effect`): Mitsuba's film splats a sample into several pix
 Gaussian filter, so its neighbouring pixels covary and a sum of pixel variances understates a
 block's.
 
+`--gallery` runs the same comparison on scenes whose licences let their renders be published
+(GALLERY: Benedikt Bitterli's "Rendering resources", Mitsuba 0.5 versions, each under its own
+Creative Commons licence, as mirrored with their LICENSE.txt files in
+jgarciapueyo/mitsuba2-transient-scenes at GALLERY_COMMIT) and writes docs/gallery's side-by-side
+images with `--png`. A scene lumis converts only with `--partial` is compared like for like:
+Mitsuba renders a copy of the file in which each refused element is replaced as lumis replaced
+it (`mirror_partial`), and the gallery says so.
+
 Run through corpus.sh, which sets up the virtual environment and builds lumis.
 """
 
@@ -73,6 +81,30 @@ SCENES = [
 # The folders of mitsuba-data the scenes and their assets are in.
 FOLDERS = ["scenes", "docs/scenes", "common"]
 
+# Scenes whose licences allow their renders to be published: (name, scene file in the gallery
+# source, -D defines, what it exercises, licence, credit). The files are Bitterli's Mitsuba 0.5
+# versions; the mirror keeps each scene's LICENSE.txt beside it.
+GALLERY_SOURCE = "https://github.com/jgarciapueyo/mitsuba2-transient-scenes"
+GALLERY_COMMIT = "ab67c4caa9228aa9d4115aeb90c3d3bab0aaf7b5"
+GALLERY = [
+    ("staircase2", "staircase2/scene.xml", {},
+     "Mitsuba 0.5 file, 13 area lights (rectangles, disks), glass, textured rough plastic, "
+     "rough conductors, tent filter, `path` (max depth 65)",
+     "CC BY 3.0", "'Modern Hall' by NewSee2l035 (blendswap.com/blends/view/51997), Mitsuba "
+     "version by Benedikt Bitterli"),
+    ("living-room", "living-room/scene.xml", {},
+     "Mitsuba 0.5 file, env map, glass, textured diffuse and rough plastic, conductors, "
+     "tent filter, `path`; its `mask` BSDF (leaves) is refused",
+     "CC BY 3.0", "'The Grey & White Room' by Wig42 (blendswap.com/blends/view/75795), "
+     "Mitsuba version by Benedikt Bitterli"),
+    ("staircase", "staircase/scene.xml", {},
+     "Mitsuba 0.5 file, 774 OBJ meshes, one area light, textured diffuse and rough plastic, "
+     "conductors, tent filter, `path`; a `bumpmap` is refused",
+     "CC BY 3.0", "'The Wooden Staircase' by Wig42 (blendswap.com/blends/view/77668), "
+     "Mitsuba version by Benedikt Bitterli"),
+]
+GALLERY_FOLDERS = ["staircase2", "living-room", "staircase"]
+
 
 def shrink(folder, factor):
     """Divides every literal film width and height of the XML files under `folder`."""
@@ -80,6 +112,19 @@ def shrink(folder, factor):
     for xml in folder.rglob("*.xml"):
         text = xml.read_text()
         new = pattern.sub(lambda m: f"{m[1]}{max(8, int(m[2]) // factor)}{m[3]}", text)
+        if new != text:
+            xml.write_text(new)
+
+
+def for_mitsuba3(folder):
+    """Mitsuba 0.5's film property `highQualityEdges` (sample outside the film for its edge
+    pixels) is neither upgraded nor known by Mitsuba 3.9.1, which refuses the file as an
+    unreferenced property: removed from the gallery's copies, so Mitsuba 3 renders without
+    border samples, as lumis does (its importer notes the property as ignored)."""
+    pattern = re.compile(r'\s*<boolean\s+name="(?:highQualityEdges|high_quality_edges)"[^>]*/>')
+    for xml in folder.rglob("*.xml"):
+        text = xml.read_text()
+        new = pattern.sub("", text)
         if new != text:
             xml.write_text(new)
 
@@ -114,6 +159,67 @@ def plain(folder):
                     visit(child)
         visit(root)
         tree.write(xml)
+
+
+def element_span(lines, line):
+    """The (first, last) line indices (0-based, inclusive) of the XML element that starts on
+    1-based line `line`: from its first tag to its closing tag, found by counting tags."""
+    tag = re.compile(r"<(/?)([A-Za-z_][\w.-]*)[^>]*?(/?)>|<!--.*?-->", re.S)
+    text = "\n".join(lines[line - 1:])
+    depth = 0
+    for m in tag.finditer(text):
+        if m.group(0).startswith("<!--"):
+            continue
+        if m[1]:
+            depth -= 1
+        elif not m[3]:
+            depth += 1
+        if depth == 0:
+            return line - 1, line - 1 + text.count("\n", 0, m.end())
+    raise ValueError(f"line {line}: no complete element")
+
+
+def mirror_partial(problems):
+    """Edits the scene files so that Mitsuba renders what `lumis import --partial` converted:
+    each refusal ("skipped: FILE:LINE: reason") is mirrored as lumis handled it. A refused BSDF
+    becomes Mitsuba's default (`diffuse`, keeping its `id`), as lumis gives its shapes; a `<ref>`
+    that lumis could not resolve is removed (its shape gets the default BSDF in both); an unused
+    top-level element changes nothing; a refusal inside a refused BSDF goes with it. Returns the
+    refusals it cannot mirror (then the scene is not compared)."""
+    parsed, unmirrored = [], []
+    for problem in problems:
+        m = re.match(r"skipped: (.+?):(\d+): (.*)$", problem)
+        if m:
+            parsed.append((Path(m[1]), int(m[2]), m[3], problem))
+        else:
+            unmirrored.append(problem)
+    files = {path: path.read_text().split("\n") for path, _, _, _ in parsed}
+    edits, inner = {}, []
+    for path, line, reason, problem in parsed:
+        if re.match(r"BSDF `\w+` is not converted", reason):
+            edits.setdefault(path, []).append((element_span(files[path], line), "bsdf"))
+        elif reason.startswith("reference to `") and "names nothing" in reason:
+            edits.setdefault(path, []).append((element_span(files[path], line), "remove"))
+        elif "never used" in reason:
+            pass
+        else:
+            inner.append((path, line, problem))
+    for path, line, problem in inner:
+        if not any(first < line - 1 <= last and action == "bsdf"
+                   for (first, last), action in edits.get(path, [])):
+            unmirrored.append(problem)
+    for path, spans in edits.items():
+        lines = files[path]
+        for (first, last), action in sorted(spans, reverse=True):
+            head = lines[first]
+            if action == "bsdf":
+                attrs = "".join(f' {k}="{v[1]}"' for k in ("id", "name")
+                                if (v := re.search(rf'\s{k}="([^"]*)"', head)))
+                lines[first:last + 1] = [f'<bsdf type="diffuse"{attrs}/>']
+            else:
+                lines[first:last + 1] = []
+        path.write_text("\n".join(lines))
+    return unmirrored
 
 
 def lumis_runs(binary, ron, runs, spp, exr):
@@ -193,12 +299,30 @@ def to_png(rgb, path):
         str(path))
 
 
+def side_by_side(left, right, path, gap=2):
+    """lumis | Mitsuba in one sRGB PNG, each at half the tested resolution (2 × 2 pixel means,
+    so that the file stays a few tens of KB), a white gap between them."""
+    import mitsuba as mi
+
+    def half(x):
+        h, w = x.shape[0] // 2 * 2, x.shape[1] // 2 * 2
+        return x[:h, :w].reshape(h // 2, 2, w // 2, 2, 3).mean((1, 3))
+    left, right = half(left), half(right)
+    both = np.concatenate([left, np.ones((left.shape[0], gap, 3)), right], 1)
+    bitmap = mi.Bitmap(np.ascontiguousarray(both.astype(np.float32)))
+    bitmap.convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True).write(
+        str(path))
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--lumis", type=Path, default=REPO / "target" / "release" / "lumis")
     p.add_argument("--work", type=Path, default=REPO / "target" / "mitsuba-corpus")
-    p.add_argument("--data", type=Path, help="a checkout of mitsuba-data "
-                   "(default: WORK/mitsuba-data, cloned when absent)")
+    p.add_argument("--data", type=Path, help="a checkout of mitsuba-data, or with --gallery of "
+                   "GALLERY_SOURCE at GALLERY_COMMIT (default: cloned into WORK when absent)")
+    p.add_argument("--gallery", action="store_true",
+                   help="the licensed scenes of GALLERY instead of mitsuba-data's; with --png, "
+                        "one side-by-side image (lumis | Mitsuba) per scene")
     p.add_argument("--runs", type=int, default=8, help="seeds per renderer")
     p.add_argument("--spp", type=int, default=16, help="samples per pixel of each run")
     p.add_argument("--shrink", type=int, default=6, help="divides literal film sizes")
@@ -211,24 +335,34 @@ def main():
     args = p.parse_args()
     work = args.work.resolve()
     work.mkdir(parents=True, exist_ok=True)
-    data = args.data or work / "mitsuba-data"
-    if not data.exists():
-        subprocess.run(["git", "clone", "--depth", "1",
-                        "https://github.com/mitsuba-renderer/mitsuba-data", str(data)],
-                       check=True)
+    if args.gallery:
+        scenes = [(n, f, d, w) for n, f, d, w, _, _ in GALLERY]
+        data, folders = args.data or work / "gallery-data", GALLERY_FOLDERS
+        if not data.exists():
+            subprocess.run(["git", "clone", GALLERY_SOURCE, str(data)], check=True)
+            subprocess.run(["git", "-C", str(data), "checkout", GALLERY_COMMIT], check=True)
+    else:
+        scenes = SCENES
+        data, folders = args.data or work / "mitsuba-data", FOLDERS
+        if not data.exists():
+            subprocess.run(["git", "clone", "--depth", "1",
+                            "https://github.com/mitsuba-renderer/mitsuba-data", str(data)],
+                           check=True)
     tree = work / "tree"
     if tree.exists():
         shutil.rmtree(tree)
-    for folder in FOLDERS:
+    for folder in folders:
         shutil.copytree(data / folder, tree / folder)
     shrink(tree, args.shrink)
+    if args.gallery:
+        for_mitsuba3(tree)
     if args.plain:
         plain(tree)
 
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
     results = []
-    for name, scene, defines, what in SCENES:
+    for name, scene, defines, what in scenes:
         if args.only and name not in args.only:
             continue
         xml = tree / scene
@@ -253,7 +387,12 @@ def main():
               f", {len(notes)} note(s)")
         for line in problems:
             print(f"     {line}")
-        if r["converts"]:
+        if r["converts"] and not r["imports"]:
+            # Mitsuba renders what lumis converted: the refusals mirrored in its copy.
+            r["unmirrored"] = mirror_partial(problems)
+            for line in r["unmirrored"]:
+                print(f"   not mirrored for Mitsuba, not compared: {line}")
+        if r["converts"] and not r.get("unmirrored"):
             exr = out / "lumis.exr"
             try:
                 lumis = lumis_runs(args.lumis, ron, args.runs, args.spp, exr)
@@ -263,7 +402,10 @@ def main():
                 results.append(r)
                 continue
             mi_defines = {k: v for k, v in defines.items()}
-            for label, integrator in [("as written", None), ("direct", "direct")]:
+            # The control (Mitsuba's `direct`) shows that the test resolves indirect light; the
+            # gallery's scenes are lit mostly indirectly, and it is left out there.
+            labels = [("as written", None)] + ([] if args.gallery else [("direct", "direct")])
+            for label, integrator in labels:
                 try:
                     mitsuba = mitsuba_runs(xml, mi_defines, args.runs, args.spp, integrator)
                 except Exception as e:  # Mitsuba refuses the scene: reported, not fatal.
@@ -282,7 +424,11 @@ def main():
                             "uncorrected_max_z": c["uncorrected"]["max_z"],
                             "uncorrected_global_z": c["uncorrected"]["global_z"]}
                 print(f"   vs Mitsuba {label}: {verdict(c)}")
-                if args.png and label == "as written":
+                if args.png and label == "as written" and args.gallery:
+                    args.png.mkdir(parents=True, exist_ok=True)
+                    side_by_side(np.mean(lumis, 0), np.mean(mitsuba, 0),
+                                 args.png / f"{name}.png")
+                elif args.png and label == "as written":
                     args.png.mkdir(parents=True, exist_ok=True)
                     to_png(np.mean(lumis, 0), args.png / f"{name}-lumis.png")
                     to_png(np.mean(mitsuba, 0), args.png / f"{name}-mitsuba.png")

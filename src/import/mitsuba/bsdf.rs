@@ -239,7 +239,7 @@ impl Converter {
         if textured
             && p.objects
                 .iter()
-                .any(|o| o.attribute("name") == Some("alpha"))
+                .any(|o| p.name_of(o).as_deref() == Some("alpha"))
         {
             let Some(alpha) = self.texture_parameter(p, "alpha")? else {
                 return Ok(None);
@@ -339,7 +339,10 @@ impl Converter {
     /// A colour parameter: a texture of that name (nested, or a `<ref>`), a colour, or the
     /// default.
     fn color_or_texture(&mut self, p: &mut Properties, name: &str, default: f64) -> Read {
-        if p.objects.iter().any(|o| o.attribute("name") == Some(name)) {
+        if p.objects
+            .iter()
+            .any(|o| p.name_of(o).as_deref() == Some(name))
+        {
             return self.texture_parameter(p, name);
         }
         Ok(p.color(name, default)?.map(color))
@@ -350,7 +353,7 @@ impl Converter {
         let Some(i) = p
             .objects
             .iter()
-            .position(|o| o.attribute("name") == Some(name))
+            .position(|o| p.name_of(o).as_deref() == Some(name))
         else {
             return Ok(None);
         };

@@ -363,7 +363,7 @@ impl Properties<'_, '_> {
             || self
                 .objects
                 .iter()
-                .any(|o| o.attribute("name") == Some(name))
+                .any(|o| self.name_of(o).as_deref() == Some(name))
     }
 
     /// Marks property `name` as read without using it (it does not change the image).

@@ -234,7 +234,6 @@ impl Converter {
             "component_format",
             "file_format",
             "banner",
-            "high_quality_edges",
             "attach_log",
         ] {
             p.ignore(ignored);
@@ -260,6 +259,16 @@ impl Converter {
                 default_filter()
             }
         };
+        // Mitsuba 0.x's name for `sample_border`, which Mitsuba 3 neither upgrades nor knows (it
+        // refuses the file as an unreferenced property).
+        if let Some((true, l)) = p.boolean("high_quality_edges")? {
+            self.note(
+                l,
+                "`highQualityEdges` (Mitsuba 0.x's `sample_border`; Mitsuba 3 refuses it) is \
+                 ignored: lumis cuts the filter at the film's edge and renormalises it (pixels \
+                 at the edge differ from Mitsuba 0.x's)",
+            );
+        }
         if let Some((true, l)) = p.boolean("sample_border")? {
             self.note(
                 l,
