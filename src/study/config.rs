@@ -569,6 +569,39 @@ mod tests {
         );
     }
 
+    /// The baseline is `balance` in a direct study and `path` with the balance weighting in a
+    /// study of `path` rows, wherever it is in the list; the headline falls back to the first
+    /// other `path` row; a mixed list is refused.
+    #[test]
+    fn the_baseline_is_the_balance_row_of_its_family_and_mixed_lists_are_refused() {
+        let mut config =
+            StudyConfig::new(vec![], PathBuf::from("out")).expect("the defaults parse");
+        let with = |config: &mut StudyConfig, list: &str| {
+            config.integrators = parse_integrators(list).expect("list");
+        };
+        assert_eq!(config.baseline().expect("balance"), 2);
+        with(
+            &mut config,
+            "path:weighting=power,path:weighting=balance:max_depth=3",
+        );
+        assert!(config.is_path_study());
+        assert_eq!(config.baseline().expect("path balance"), 1);
+        assert_eq!(config.headline_index(), Some(0));
+        with(
+            &mut config,
+            "path:weighting=balance,path:weighting=power,path:allocation=alpha:samples=8",
+        );
+        assert_eq!(config.headline_index(), Some(2));
+        with(&mut config, "path,path:weighting=max");
+        assert!(config.baseline().is_err());
+        with(&mut config, "balance,path:weighting=balance");
+        let error = config.baseline().expect_err("mixed").to_string();
+        assert!(error.contains("mixes `path` rows"), "{error}");
+        with(&mut config, "balance,light");
+        assert!(!config.is_path_study());
+        assert_eq!(config.headline_index(), None);
+    }
+
     #[test]
     fn budgets_increase_and_rounds_double_to_the_cap() {
         assert_eq!(parse_budgets("4, 8,16").expect("parses"), [4, 8, 16]);
