@@ -105,13 +105,16 @@ struct StudyArgs {
     #[arg(long, value_name = "DIR")]
     collect: Option<PathBuf>,
     /// Integrators, comma-separated, each NAME[:key=value]... (e.g. alpha:mode=preprocessed);
-    /// any registered integrator with a `samples` parameter. Must include balance.
+    /// any registered integrator with a `samples` parameter. Must include balance, the baseline
+    /// of every ratio; or all `path` rows, then including path:weighting=balance, the baseline,
+    /// and budgets are camera samples per pixel (docs/study.md). Mixed lists are refused.
     #[arg(long, default_value = lumis::study::DEFAULT_INTEGRATORS)]
     integrators: String,
-    /// The ladder of budgets N (samples per light per camera sample), comma-separated.
+    /// The ladder of budgets N (samples per light per camera sample; camera samples per pixel
+    /// for `path` rows), comma-separated.
     #[arg(long, default_value = lumis::study::DEFAULT_BUDGETS)]
     budgets: String,
-    /// The budget whose balance error is the target error and whose time is the equal-time
+    /// The budget whose baseline error is the target error and whose time is the equal-time
     /// point (default: the middle of the ladder).
     #[arg(long)]
     target_budget: Option<u32>,
@@ -128,7 +131,8 @@ struct StudyArgs {
     /// A reference image (EXR) for a single scene, instead of rendering one.
     #[arg(long, conflicts_with = "reference_samples")]
     reference: Option<PathBuf>,
-    /// Samples per light per pixel of the rendered reference (balance heuristic, 16 shards).
+    /// Samples per light per pixel of the rendered reference (the baseline, 16 shards; camera
+    /// samples per pixel for `path`).
     #[arg(long, default_value_t = 4096)]
     reference_samples: u32,
     /// Where rendered references are cached (default: OUT/cache).

@@ -419,6 +419,71 @@ fn an_interrupted_study_keeps_its_complete_runs_and_exits_130() {
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
 
+/// A study of `path` rows: its budgets are camera samples per pixel, its baseline (every ratio's
+/// denominator) is the row with the balance weighting wherever it is in the list, and its
+/// reference is rendered by that row's spec.
+#[test]
+fn a_path_study_reads_every_row_against_path_with_the_balance_weighting() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (out, cache) = (dir.path().join("out"), dir.path().join("cache"));
+    let (out_dir, cache_dir) = (out.display().to_string(), cache.display().to_string());
+    let rows = [
+        "path:weighting=power:max_depth=3",
+        "path:weighting=balance:max_depth=3",
+    ];
+    let integrators = rows.join(",");
+    let args = [
+        "study",
+        "scenes/cornell.ron",
+        "--set",
+        "film.width=12",
+        "--set",
+        "film.height=8",
+        "--budgets",
+        "1,2",
+        "--runs",
+        "3",
+        "--max-runs",
+        "3",
+        "--reference-samples",
+        "32",
+        "--integrators",
+        &integrators,
+        "--out",
+        &out_dir,
+        "--cache-dir",
+        &cache_dir,
+    ];
+    let output = lumis(&repo(), &args);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let curve: Vec<_> = read_csv(&out.join("results.csv"))
+        .into_iter()
+        .filter(|r| r["group"] == "curve")
+        .collect();
+    assert_eq!(curve.len(), rows.len() * 2);
+    for row in &curve {
+        let baseline = row["integrator"] == rows[1];
+        for key in ["ratio_relative_variance", "ratio_cpu_time"] {
+            let ratio = number(row, key);
+            assert_eq!(
+                ratio == 1.0,
+                baseline,
+                "{} {key} = {ratio}",
+                row["integrator"]
+            );
+        }
+    }
+    let report = std::fs::read_to_string(out.join("results.md")).expect("the report");
+    assert!(
+        report.contains(&format!(
+            "`{}`, 32 camera samples per pixel in 16 shards",
+            rows[1]
+        )),
+        "{report}"
+    );
+}
+
 #[test]
 fn bad_study_arguments_get_clear_errors() {
     let cases: [(&[&str], &str); 8] = [
@@ -473,4 +538,18 @@ fn bad_study_arguments_get_clear_errors() {
     );
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("must include `balance`"), "{stderr}");
+    for (integrators, expected) in [
+        ("balance,path:weighting=balance", "mixes `path` rows"),
+        (
+            "path,path:weighting=power",
+            "must include `path:weighting=balance`",
+        ),
+    ] {
+        let mut args = vec!["study", "scenes/cornell.ron", "--quiet", "--out", &out];
+        args.extend(["--integrators", integrators]);
+        let output = lumis(&repo(), &args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{integrators}: {stderr}");
+        assert!(stderr.contains(expected), "{integrators}: {stderr}");
+    }
 }

@@ -84,30 +84,10 @@ pub fn run_cell(
     scene.seed = cell.seed;
     let cpu_start = process_cpu_time();
     let wall_start = std::time::Instant::now();
-    integrator.preprocess(scene);
-    let film = match plan.in_passes(cell) {
-        None => {
-            let (film, stats) = lumis_core::render::render_cancellable(
-                scene,
-                &*integrator,
-                threads,
-                &|_| {},
-                cancel,
-            )
-            .context("cannot start the render threads")?;
-            if stats.partial() {
-                return Err(Interrupted(out.to_path_buf()).into());
-            }
-            film
-        }
-        Some(in_passes) => {
-            let (spp, scene_spp) = (in_passes.spp(), scene.spp);
-            scene.spp = spp;
-            let film = render_in_passes(scene, integrator.as_mut(), in_passes, threads, cancel);
-            scene.spp = scene_spp;
-            film?.ok_or_else(|| Interrupted(out.to_path_buf()))?
-        }
-    };
+    let scene_spp = scene.spp;
+    let film = render(plan, cell, scene, integrator.as_mut(), threads, cancel);
+    scene.spp = scene_spp;
+    let film = film?.ok_or_else(|| Interrupted(out.to_path_buf()))?;
     let wall_time = wall_start.elapsed().as_secs_f64();
     let cpu = process_cpu_time() - cpu_start;
     Ok(CellResult {
@@ -119,6 +99,46 @@ pub fn run_cell(
         cpu_time: if cpu.is_finite() { cpu } else { wall_time },
         wall_time,
     })
+}
+
+/// Renders `cell` (preprocess included) at its camera samples per pixel, at once or in passes;
+/// `None` if `cancel` stopped it. Leaves `scene.spp` at the cell's.
+fn render(
+    plan: &ScenePlan,
+    cell: &Cell,
+    scene: &mut Scene,
+    integrator: &mut dyn Integrator,
+    threads: usize,
+    cancel: &AtomicBool,
+) -> Result<Option<Film>> {
+    let camera_samples = plan.camera_samples(cell);
+    if let Some(spp) = camera_samples {
+        scene.spp = spp;
+    }
+    integrator.preprocess(scene);
+    match plan.in_passes(cell) {
+        None => {
+            let (film, stats) =
+                lumis_core::render::render_cancellable(scene, integrator, threads, &|_| {}, cancel)
+                    .context("cannot start the render threads")?;
+            Ok((!stats.partial()).then_some(film))
+        }
+        Some(in_passes) => {
+            // A `path` row's camera samples are its budget, in as many passes as it asks
+            // (at most one a camera sample); a direct row's are the passes'.
+            let in_passes = match camera_samples {
+                Some(spp) => InPasses {
+                    passes: in_passes.passes.min(spp),
+                    ..in_passes
+                },
+                None => {
+                    scene.spp = in_passes.spp();
+                    in_passes
+                }
+            };
+            render_in_passes(scene, integrator, in_passes, threads, cancel)
+        }
+    }
 }
 
 /// A render of `scene`'s samples in the passes of `in_passes`; `None` if `cancel` stopped it.

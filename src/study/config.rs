@@ -8,14 +8,15 @@ use lumis_core::budgets::Budgets;
 use lumis_core::params::ParamKind;
 use lumis_core::registry::{IntegratorPlugin, find};
 use lumis_core::scene::description::PluginSpec;
-use lumis_integrators::{alpha, aovs, mis};
+use lumis_integrators::{alpha, aovs, mis, path};
 use ron::Value;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// An integrator of a study: a plugin with parameters, written `NAME[:key=value]...`
 /// (e.g. `alpha:mode=preprocessed:alpha_samples=1024`); the text is its label. The study sets
-/// `samples` (the budget) and `aovs` itself. Two keys are the study's, not the plugin's:
+/// `aovs` itself, and the budget: `samples` of a direct integrator; of a `path` row the camera
+/// samples per pixel, its `samples` (N per light at the first vertex) being the row's. Two keys are the study's, not the plugin's:
 /// `passes=K` renders in K passes of 2 camera samples each ([`InPasses`]), and with it
 /// `budgets=per-pixel` spreads each pass's samples over the pixels (docs/integrators.md).
 #[derive(Clone, Debug, PartialEq)]
@@ -69,7 +70,8 @@ impl Choice {
             params.insert(key.trim().to_string(), value);
         }
         for reserved in [mis::SAMPLES, mis::AOVS] {
-            if params.contains_key(reserved) {
+            let budgeted_by_spp = kind == path::NAME && reserved == mis::SAMPLES;
+            if params.contains_key(reserved) && !budgeted_by_spp {
                 bail!("`{text}`: `{reserved}` is set by the study, not per integrator");
             }
         }
@@ -136,18 +138,43 @@ impl Choice {
         }
     }
 
-    /// The second-order α with integrated estimation (the paper's Table 2 method).
+    /// The second-order α with integrated estimation (the paper's Table 2 method): the `alpha`
+    /// integrator, or `path` with it as its first vertex's allocation.
     pub fn is_integrated_alpha(&self) -> bool {
-        self.spec.kind == alpha::NAME
-            && matches!(
-                self.string_param(alpha::MODE),
-                None | Some(alpha::INTEGRATED)
-            )
+        let integrated = matches!(
+            self.string_param(alpha::MODE),
+            None | Some(alpha::INTEGRATED)
+        );
+        integrated
+            && (self.spec.kind == alpha::NAME
+                || (self.is_path() && self.string_param(path::ALLOCATION) == Some(alpha::NAME)))
+    }
+
+    /// A `path` row: its budget is camera samples per pixel ([`Choice::spec_at`]).
+    pub fn is_path(&self) -> bool {
+        self.spec.kind == path::NAME
+    }
+
+    /// The baseline of a study of direct integrators: the balance heuristic.
+    fn is_direct_baseline(&self) -> bool {
+        self.spec.kind == BALANCE
+    }
+
+    /// The baseline of a study of `path` rows: `path` with the balance weighting at every vertex.
+    fn is_path_baseline(&self) -> bool {
+        self.is_path() && self.string_param(path::WEIGHTING) == Some(BALANCE)
+    }
+
+    /// Camera samples per pixel of this row at budget `budget`: the budget for a `path` row
+    /// (`None`: the scene's own for a direct one).
+    pub fn camera_samples(&self, budget: u32) -> Option<u32> {
+        self.is_path().then_some(budget)
     }
 
     /// The plugin's spec for a budget of `samples` per light (per camera sample; in passes, over
     /// the pixel's camera samples: [`InPasses`]), with the AOV layers the study reads among
-    /// those the plugin offers.
+    /// those the plugin offers. A `path` row's budget is its camera samples per pixel
+    /// ([`Choice::camera_samples`]): its spec keeps its own `samples`.
     pub fn spec_at(&self, samples: u32) -> Result<PluginSpec> {
         let plugin = find::<IntegratorPlugin>(&self.spec.kind)
             .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
@@ -159,11 +186,13 @@ impl Choice {
             );
         }
         let mut spec = self.spec.clone();
-        let per_light = match self.in_passes {
-            Some(p) => (samples / p.spp()).max(1),
-            None => samples,
-        };
-        mis::set_samples(&mut spec, per_light);
+        if !self.is_path() {
+            let per_light = match self.in_passes {
+                Some(p) => (samples / p.spp()).max(1),
+                None => samples,
+            };
+            mis::set_samples(&mut spec, per_light);
+        }
         let offered = plugin.params.iter().find_map(|p| match p.kind {
             ParamKind::List { options } if p.name == mis::AOVS => Some(options),
             _ => None,
@@ -198,8 +227,8 @@ pub const PAPER_PREPROCESSED_PILOT: u32 = 4096;
 pub enum ReferenceSource {
     /// An EXR given by the user (one scene only).
     File(PathBuf),
-    /// Rendered with the balance heuristic at this many samples per light per pixel, as
-    /// independent shards, and cached.
+    /// Rendered with the baseline ([`StudyConfig::baseline`]) at this many samples per light
+    /// per pixel (camera samples per pixel for `path`), as independent shards, and cached.
     Samples(u32),
 }
 
@@ -248,8 +277,8 @@ pub struct StudyConfig {
     pub integrators: Vec<Choice>,
     /// The ladder of budgets N, increasing.
     pub budgets: Vec<u32>,
-    /// The budget whose balance-heuristic error is each scene's target error, and whose time is
-    /// its equal-time point (default: the middle of the ladder).
+    /// The budget whose baseline error is each scene's target error, and whose time is its
+    /// equal-time point (default: the middle of the ladder).
     pub target_budget: Option<u32>,
     /// K₀: runs (seeds) of every configuration in the first round (at least 3).
     pub runs: u32,
@@ -345,10 +374,61 @@ impl StudyConfig {
         rounds
     }
 
-    /// The integrator whose ratio to the balance heuristic the K rule watches: the first
-    /// integrated α of the list.
+    /// The integrator whose ratio to the baseline the K rule watches: the first integrated α of
+    /// the list; in a study of `path` rows without one, the first row other than the baseline.
     pub fn headline(&self) -> Option<&Choice> {
-        self.integrators.iter().find(|c| c.is_integrated_alpha())
+        self.headline_index().map(|i| &self.integrators[i])
+    }
+
+    /// The index of [`StudyConfig::headline`] in the list.
+    pub fn headline_index(&self) -> Option<usize> {
+        let alpha = self
+            .integrators
+            .iter()
+            .position(Choice::is_integrated_alpha);
+        if alpha.is_some() || !self.is_path_study() {
+            return alpha;
+        }
+        let baseline = self.baseline().ok()?;
+        (0..self.integrators.len()).find(|&i| i != baseline)
+    }
+
+    /// A study of `path` rows (all of them: [`StudyConfig::validate`] refuses a mixed list).
+    pub fn is_path_study(&self) -> bool {
+        self.integrators.first().is_some_and(Choice::is_path)
+    }
+
+    /// The index of the baseline in the list, against which every ratio is taken and whose
+    /// error at the target budget is the target: the first `balance` of a study of direct
+    /// integrators, the first `path` with `weighting=balance` of a study of `path` rows.
+    pub fn baseline(&self) -> Result<usize> {
+        let paths = self.integrators.iter().filter(|c| c.is_path()).count();
+        if paths > 0 && paths < self.integrators.len() {
+            let (first_path, first_direct) = (
+                self.integrators.iter().find(|c| c.is_path()),
+                self.integrators.iter().find(|c| !c.is_path()),
+            );
+            bail!(
+                "--integrators mixes `path` rows (`{}`) with direct integrators (`{}`): they estimate different images (all light paths, or direct light only), so no ratio between them means anything; study them separately",
+                first_path.map_or("", |c| &c.label),
+                first_direct.map_or("", |c| &c.label)
+            );
+        }
+        if paths > 0 {
+            return self
+                .integrators
+                .iter()
+                .position(Choice::is_path_baseline)
+                .context(
+                    "--integrators of `path` rows must include `path:weighting=balance`: every ratio, the target error and the equal-time point are its",
+                );
+        }
+        self.integrators
+            .iter()
+            .position(Choice::is_direct_baseline)
+            .context(
+                "--integrators must include `balance`: every ratio, the target error and the equal-time point are the balance heuristic's",
+            )
     }
 
     /// Checks everything that can be checked before rendering.
@@ -392,9 +472,10 @@ impl StudyConfig {
             }
             choice.spec_at(self.budgets[0])?;
         }
-        if !self.integrators.iter().any(|c| c.spec.kind == BALANCE) {
+        self.baseline()?;
+        if self.is_path_study() && (self.sweeps.any() || self.paper_pilots) {
             bail!(
-                "--integrators must include `balance`: every ratio, the target error and the equal-time point are the balance heuristic's"
+                "--sweeps and --paper-pilots vary the direct `alpha` integrator against `balance`: they do not apply to a study of `path` rows"
             );
         }
         if let ReferenceSource::File(file) = &self.reference
@@ -486,6 +567,39 @@ mod tests {
             split_list("balance, alpha:clamp=(0.1,0.9),max"),
             ["balance", "alpha:clamp=(0.1,0.9)", "max"]
         );
+    }
+
+    /// The baseline is `balance` in a direct study and `path` with the balance weighting in a
+    /// study of `path` rows, wherever it is in the list; the headline falls back to the first
+    /// other `path` row; a mixed list is refused.
+    #[test]
+    fn the_baseline_is_the_balance_row_of_its_family_and_mixed_lists_are_refused() {
+        let mut config =
+            StudyConfig::new(vec![], PathBuf::from("out")).expect("the defaults parse");
+        let with = |config: &mut StudyConfig, list: &str| {
+            config.integrators = parse_integrators(list).expect("list");
+        };
+        assert_eq!(config.baseline().expect("balance"), 2);
+        with(
+            &mut config,
+            "path:weighting=power,path:weighting=balance:max_depth=3",
+        );
+        assert!(config.is_path_study());
+        assert_eq!(config.baseline().expect("path balance"), 1);
+        assert_eq!(config.headline_index(), Some(0));
+        with(
+            &mut config,
+            "path:weighting=balance,path:weighting=power,path:allocation=alpha:samples=8",
+        );
+        assert_eq!(config.headline_index(), Some(2));
+        with(&mut config, "path,path:weighting=max");
+        assert!(config.baseline().is_err());
+        with(&mut config, "balance,path:weighting=balance");
+        let error = config.baseline().expect_err("mixed").to_string();
+        assert!(error.contains("mixes `path` rows"), "{error}");
+        with(&mut config, "balance,light");
+        assert!(!config.is_path_study());
+        assert_eq!(config.headline_index(), None);
     }
 
     #[test]

@@ -180,8 +180,13 @@ fn study_scene(
                     }
                     let reference =
                         reference::merge(&shards, reference_plan, &entry, &plan.path, window)?;
+                    let unit = if reference_plan.camera_samples.is_some() {
+                        "camera samples"
+                    } else {
+                        "samples per light"
+                    };
                     progress.line(format!(
-                        "{name}: reference, {} samples per light per pixel, {:.1} s of CPU -> {}",
+                        "{name}: reference, {} {unit} per pixel, {:.1} s of CPU -> {}",
                         reference_plan.total_samples(),
                         reference.cpu_time.unwrap_or(f64::NAN),
                         entry.file.display()

@@ -38,8 +38,11 @@ pub struct Configuration {
     /// The row's label: the integrator as the user wrote it, or a sweep point's.
     pub label: String,
     pub choice: Choice,
-    /// N, samples per light per camera sample.
+    /// The budget: N, samples per light per camera sample, or for a `path` row the camera
+    /// samples per pixel.
     pub samples: u32,
+    /// Camera samples per pixel, when the study sets them (`path` rows: the budget).
+    pub camera_samples: Option<u32>,
     /// The plugin spec rendered: `samples` and the study's AOV layers set.
     pub spec: PluginSpec,
     /// Part of the curves: its runs grow with the K rule (the others keep K₀).
@@ -49,10 +52,11 @@ pub struct Configuration {
 impl Configuration {
     fn key(&self) -> String {
         format!(
-            "{}{}{:?}",
+            "{}{}{:?}{:?}",
             self.spec.kind,
             ron::to_string(&self.spec.params).unwrap_or_default(),
-            self.choice.in_passes
+            self.choice.in_passes,
+            self.camera_samples
         )
     }
 }
@@ -91,7 +95,7 @@ pub struct SweepPoint {
 /// What a cell renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Role {
-    /// Shard j of the reference (balance heuristic, its own seed).
+    /// Shard j of the reference (the baseline, its own seed).
     Shard(u32),
     /// Run k ≥ 1 of a configuration.
     Run { configuration: usize, run: u32 },
@@ -107,13 +111,15 @@ pub struct Cell {
     pub seed: u64,
 }
 
-/// How a scene's reference is rendered: `shards` runs of the balance heuristic with
-/// `samples_per_shard` samples per light per pixel each.
+/// How a scene's reference is rendered: `shards` runs of the baseline with
+/// `samples_per_shard` samples per light per pixel each (camera samples per pixel for `path`).
 #[derive(Clone, Debug)]
 pub struct ReferencePlan {
     pub shards: u32,
     pub samples_per_shard: u32,
     pub spec: PluginSpec,
+    /// Camera samples per pixel of a shard, when the study sets them (`path`).
+    pub camera_samples: Option<u32>,
 }
 
 impl ReferencePlan {
@@ -135,9 +141,10 @@ pub struct ScenePlan {
     pub budgets: Vec<u32>,
     /// `curves[i][j]`: the configuration of integrator i at budget j.
     pub curves: Vec<Vec<usize>>,
-    /// Index of the balance heuristic among the integrators.
+    /// Index of the baseline among the integrators ([`StudyConfig::baseline`]): `balance`, or
+    /// `path:weighting=balance`.
     pub balance: usize,
-    /// Index of the integrator the K rule watches (the first integrated α), if any.
+    /// Index of the integrator the K rule watches ([`StudyConfig::headline`]), if any.
     pub headline: Option<usize>,
     /// Index of the target budget in `budgets`.
     pub target: usize,
@@ -159,6 +166,12 @@ pub fn plan_scene(config: &StudyConfig, index: usize, path: PathBuf) -> Result<S
         || path.display().to_string(),
         |s| s.to_string_lossy().into(),
     );
+    let baseline = config.baseline()?;
+    // The reference is the baseline's image, rendered at once rather than in passes.
+    let reference_choice = Choice {
+        in_passes: None,
+        ..config.integrators[baseline].clone()
+    };
     let mut plan = ScenePlan {
         index,
         path,
@@ -167,15 +180,8 @@ pub fn plan_scene(config: &StudyConfig, index: usize, path: PathBuf) -> Result<S
         integrators: config.integrators.clone(),
         budgets: config.budgets.clone(),
         curves: Vec::new(),
-        balance: config
-            .integrators
-            .iter()
-            .position(|c| c.spec.kind == balance::NAME)
-            .unwrap_or(0),
-        headline: config
-            .integrators
-            .iter()
-            .position(Choice::is_integrated_alpha),
+        balance: baseline,
+        headline: config.headline_index(),
         target: config
             .budgets
             .iter()
@@ -186,17 +192,21 @@ pub fn plan_scene(config: &StudyConfig, index: usize, path: PathBuf) -> Result<S
         panel: Vec::new(),
         reference: match config.reference {
             ReferenceSource::File(_) => None,
-            ReferenceSource::Samples(s) => Some(ReferencePlan {
-                shards: REFERENCE_SHARDS,
-                samples_per_shard: s.div_ceil(REFERENCE_SHARDS).max(2),
-                spec: Choice::parse(balance::NAME)?
-                    .spec_at(s.div_ceil(REFERENCE_SHARDS).max(2))
-                    .map(|mut spec| {
-                        // The reference needs its colours only.
-                        spec.params.remove(lumis_integrators::mis::AOVS);
-                        spec
-                    })?,
-            }),
+            ReferenceSource::Samples(s) => {
+                let samples_per_shard = s.div_ceil(REFERENCE_SHARDS).max(2);
+                Some(ReferencePlan {
+                    shards: REFERENCE_SHARDS,
+                    samples_per_shard,
+                    spec: reference_choice
+                        .spec_at(samples_per_shard)
+                        .map(|mut spec| {
+                            // The reference needs its colours only.
+                            spec.params.remove(lumis_integrators::mis::AOVS);
+                            spec
+                        })?,
+                    camera_samples: reference_choice.camera_samples(samples_per_shard),
+                })
+            }
         },
         seed: config.seed,
     };
@@ -304,6 +314,7 @@ impl ScenePlan {
         let spec = choice.spec_at(samples)?;
         let configuration = Configuration {
             label,
+            camera_samples: choice.camera_samples(samples),
             choice,
             samples,
             spec,
@@ -348,7 +359,6 @@ impl ScenePlan {
             .collect()
     }
 
-    /// The plugin spec a cell renders.
     /// How `cell` is rendered in passes, if it is.
     pub fn in_passes(&self, cell: &Cell) -> Option<InPasses> {
         match cell.role {
@@ -357,6 +367,16 @@ impl ScenePlan {
         }
     }
 
+    /// Camera samples per pixel of `cell`, when the study sets them (`None`: the scene's own,
+    /// or the passes' for a render in passes).
+    pub fn camera_samples(&self, cell: &Cell) -> Option<u32> {
+        match cell.role {
+            Role::Run { configuration, .. } => self.configurations[configuration].camera_samples,
+            Role::Shard(_) => self.reference.as_ref().and_then(|r| r.camera_samples),
+        }
+    }
+
+    /// The plugin spec a cell renders.
     pub fn spec(&self, cell: &Cell) -> &PluginSpec {
         match cell.role {
             Role::Run { configuration, .. } => &self.configurations[configuration].spec,

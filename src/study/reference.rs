@@ -1,5 +1,5 @@
-//! A scene's reference image: a user's EXR, or the balance heuristic rendered as independent
-//! seed shards (cells of the plan) and merged, with each pixel's own variance from the spread of
+//! A scene's reference image: a user's EXR, or the study's baseline (the balance heuristic, or
+//! `path` with it) rendered as independent seed shards (cells of the plan) and merged, with each pixel's own variance from the spread of
 //! the shards. Rendered references are cached in the cache directory under a key made of
 //! everything that changes the image: the scene file and the files it names, the overrides, the
 //! sample count and shards, and the program itself (a hash of the executable).
@@ -27,7 +27,7 @@ pub struct Reference {
     pub luminance: Vec<f64>,
     /// The variance of each pixel's luminance estimate (0 for a user's file, which states none).
     pub variance: Vec<f64>,
-    /// Samples per light per pixel, when rendered.
+    /// Samples per light per pixel (camera samples per pixel for `path`), when rendered.
     pub samples: Option<u32>,
     /// CPU seconds it took, when rendered (by this run or the cached one's).
     pub cpu_time: Option<f64>,
@@ -206,6 +206,20 @@ fn key(scene: &Path, overrides: &[String], plan: &ReferencePlan) -> Result<Strin
     text.hash(&mut hasher);
     overrides.hash(&mut hasher);
     (plan.total_samples(), plan.shards, &plan.spec.kind).hash(&mut hasher);
+    // The baseline's parameters, when it has any beyond the study's (a `path` row's).
+    let params: Vec<_> = plan
+        .spec
+        .params
+        .iter()
+        .filter(|(k, _)| k.as_str() != lumis_integrators::mis::SAMPLES)
+        .collect();
+    if !params.is_empty() || plan.camera_samples.is_some() {
+        (
+            ron::to_string(&params).unwrap_or_default(),
+            plan.camera_samples,
+        )
+            .hash(&mut hasher);
+    }
     executable_hash().hash(&mut hasher);
     let mut strings = Vec::new();
     if let Ok(document) = ron::from_str::<ron::Value>(&text) {

@@ -404,11 +404,23 @@ pub fn write_markdown(config: &StudyConfig, scenes: &[SceneAnalysis]) -> Result<
         .map(|c| format!("`{}`", c.label))
         .collect();
     let budgets: Vec<String> = config.budgets.iter().map(u32::to_string).collect();
+    let (unit, headline) = if config.is_path_study() {
+        (
+            "camera samples per pixel (each row's `samples` per light at the first vertex)",
+            "the first integrated α's, or else the first row's, relative variance over \
+             `path:weighting=balance`'s at the target budget",
+        )
+    } else {
+        (
+            "samples per light per camera sample",
+            "the first integrated α's relative variance over balance's at the target budget",
+        )
+    };
     writeln!(
         md,
-        "Scenes {}; integrators {}; budgets N = {} samples per light per camera sample; \
-         K₀ = {} runs (seeds {} + 1, 2, …), doubled up to {} until the headline ratio (the first \
-         integrated α's relative variance over balance's at the target budget) is within ±{} %; \
+        "Scenes {}; integrators {}; budgets N = {} {unit}; \
+         K₀ = {} runs (seeds {} + 1, 2, …), doubled up to {} until the headline ratio \
+         ({headline}) is within ±{} %; \
          the paper's rows and the sweeps keep K₀{}.\n",
         scene_list.join(", "),
         integrators.join(", "),
@@ -779,10 +791,18 @@ fn scene_section(
     )?;
     let mut reference = format!("Reference: `{}`", s.reference_path.display());
     if let Some(n) = s.reference_samples {
-        write!(
-            reference,
-            ", balance heuristic, {n} samples per light per pixel in 16 shards"
-        )?;
+        if config.is_path_study() {
+            let baseline = s.rows[s.balance].first().map_or("", |r| r.label.as_str());
+            write!(
+                reference,
+                ", `{baseline}`, {n} camera samples per pixel in 16 shards"
+            )?;
+        } else {
+            write!(
+                reference,
+                ", balance heuristic, {n} samples per light per pixel in 16 shards"
+            )?;
+        }
     }
     if let Some(t) = s.reference_cpu_time {
         write!(reference, ", {t:.1} s of CPU")?;
