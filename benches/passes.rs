@@ -105,7 +105,7 @@ fn options() -> Result<Options, String> {
             scene => o.scenes.push(from_repository(scene)),
         }
     }
-    if !["coverage", "cost", "calibration", "bias"].contains(&o.mode.as_str())
+    if !["coverage", "cost", "calibration", "bias", "dump"].contains(&o.mode.as_str())
         || o.scenes.is_empty()
     {
         return Err("usage: passes coverage|calibration|bias|cost [options] SCENE...".into());
@@ -535,6 +535,72 @@ fn cost(o: &Options, scene: &Path) {
     );
 }
 
+/// Per seed, after each pass ending at a power of two from 8 spp on (passes of 2 samples, every
+/// weight one): per pixel in row order the half-images A, B and the image, as f64 to
+/// $TMPDIR/lumis-passes-dump-SCENE.bin (seed-major, then spp, then A, B, image).
+fn dump(o: &Options, scene: &Path) {
+    use std::io::Write;
+    let _ = reference(o, scene);
+    let mut loaded = load(o, scene, &[]);
+    let settings = Settings {
+        stopping: Stopping::Samples {
+            spp: o.spp,
+            passes: o.spp / 2,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    let path = std::env::temp_dir().join(format!(
+        "lumis-passes-dump-{}.bin",
+        scene.file_stem().unwrap().to_string_lossy()
+    ));
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&path).expect("dump"));
+    for seed in 0..o.renders {
+        loaded.scene.seed = seed as u64;
+        loaded.integrator.preprocess(&loaded.scene);
+        let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
+        let integrator: &dyn lumis::integrator::Integrator = loaded.integrator.as_ref();
+        let _ = integrator;
+        let mut frames: Vec<Vec<f64>> = Vec::new();
+        let scene_ref = &loaded.scene;
+        lumis::progressive::run(
+            &loaded.scene,
+            loaded.integrator.as_mut(),
+            &settings,
+            &mut state,
+            Scope::whole(0),
+            &AtomicBool::new(false),
+            &|_| {},
+            &mut |state| {
+                let end = state.history.samples();
+                if end >= 8 && end.is_power_of_two() {
+                    let sums = &state.sums;
+                    let n = sums.samples.len();
+                    let mut a = vec![0.0; n];
+                    let mut b = vec![0.0; n];
+                    for p in 0..n {
+                        let half = sums.weight[p] / 2.0;
+                        let r = sums.row_index(p);
+                        a[r] = sums.halves[p][0] / half;
+                        b[r] = sums.halves[p][1] / half;
+                    }
+                    let _ = scene_ref;
+                    frames.push(a);
+                    frames.push(b);
+                }
+                Control::Continue
+            },
+        )
+        .expect("render");
+        for f in &frames {
+            for v in f {
+                out.write_all(&v.to_le_bytes()).unwrap();
+            }
+        }
+    }
+    eprintln!("{}", path.display());
+}
+
 fn main() {
     lumis::link_plugins();
     let o = match options() {
@@ -567,6 +633,7 @@ fn main() {
             "coverage" => coverage(&o, scene),
             "bias" => bias(&o, scene),
             "calibration" => calibration(&o, scene),
+            "dump" => dump(&o, scene),
             _ => cost(&o, scene),
         }
     }
