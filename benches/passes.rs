@@ -7,6 +7,7 @@
 //!     [--spp S] SCENE...
 //! cargo bench --bench passes -- cost [--runs K] [--size WxH] [--samples N] [--spp S]
 //!     [--passes P] SCENE...
+//! cargo bench --bench passes -- dump [--renders R] [--size WxH] [--samples N] [--spp S] SCENE...
 //! ```
 //!
 //! `coverage`: per scene, a converged reference (S samples per pixel in 16 renders of
@@ -29,6 +30,9 @@
 //! one-pass render of the same samples, K interleaved pairs on one thread; the images are the
 //! same bit for bit. Prints the ratio of the medians of CPU time and the 95 % interval of the
 //! mean of the pairs' log ratios.
+//!
+//! `dump`: R renders of S spp in passes of 2, each pixel's half-images written after 8, 16, …
+//! spp (`dump`'s comment says where), for trying error estimators offline against the reference.
 
 use lumis::error_estimate::Metric;
 use lumis::passes::{Settings, Stopping};
@@ -108,7 +112,7 @@ fn options() -> Result<Options, String> {
     if !["coverage", "cost", "calibration", "bias", "dump"].contains(&o.mode.as_str())
         || o.scenes.is_empty()
     {
-        return Err("usage: passes coverage|calibration|bias|cost [options] SCENE...".into());
+        return Err("usage: passes coverage|calibration|bias|cost|dump [options] SCENE...".into());
     }
     Ok(o)
 }
@@ -536,8 +540,9 @@ fn cost(o: &Options, scene: &Path) {
 }
 
 /// Per seed, after each pass ending at a power of two from 8 spp on (passes of 2 samples, every
-/// weight one): per pixel in row order the half-images A, B and the image, as f64 to
-/// $TMPDIR/lumis-passes-dump-SCENE.bin (seed-major, then spp, then A, B, image).
+/// weight one): per pixel in row order the half-images A and B, as little-endian f64 to
+/// $TMPDIR/lumis-passes-dump-SCENE.bin (seed-major, then spp, then A, then B), beside the
+/// reference's cache: what an error estimator can be tried on offline.
 fn dump(o: &Options, scene: &Path) {
     use std::io::Write;
     let _ = reference(o, scene);
@@ -559,10 +564,7 @@ fn dump(o: &Options, scene: &Path) {
         loaded.scene.seed = seed as u64;
         loaded.integrator.preprocess(&loaded.scene);
         let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
-        let integrator: &dyn lumis::integrator::Integrator = loaded.integrator.as_ref();
-        let _ = integrator;
         let mut frames: Vec<Vec<f64>> = Vec::new();
-        let scene_ref = &loaded.scene;
         lumis::progressive::run(
             &loaded.scene,
             loaded.integrator.as_mut(),
@@ -584,7 +586,6 @@ fn dump(o: &Options, scene: &Path) {
                         a[r] = sums.halves[p][0] / half;
                         b[r] = sums.halves[p][1] / half;
                     }
-                    let _ = scene_ref;
                     frames.push(a);
                     frames.push(b);
                 }
