@@ -7,6 +7,7 @@
 //!     [--spp S] SCENE...
 //! cargo bench --bench passes -- cost [--runs K] [--size WxH] [--samples N] [--spp S]
 //!     [--passes P] SCENE...
+//! cargo bench --bench passes -- dump [--renders R] [--size WxH] [--samples N] [--spp S] SCENE...
 //! ```
 //!
 //! `coverage`: per scene, a converged reference (S samples per pixel in 16 renders of
@@ -29,6 +30,9 @@
 //! one-pass render of the same samples, K interleaved pairs on one thread; the images are the
 //! same bit for bit. Prints the ratio of the medians of CPU time and the 95 % interval of the
 //! mean of the pairs' log ratios.
+//!
+//! `dump`: R renders of S spp in passes of 2, each pixel's half-images written after 8, 16, …
+//! spp (`dump`'s comment says where), for trying error estimators offline against the reference.
 
 use lumis::error_estimate::Metric;
 use lumis::passes::{Settings, Stopping};
@@ -105,10 +109,10 @@ fn options() -> Result<Options, String> {
             scene => o.scenes.push(from_repository(scene)),
         }
     }
-    if !["coverage", "cost", "calibration", "bias"].contains(&o.mode.as_str())
+    if !["coverage", "cost", "calibration", "bias", "dump"].contains(&o.mode.as_str())
         || o.scenes.is_empty()
     {
-        return Err("usage: passes coverage|calibration|bias|cost [options] SCENE...".into());
+        return Err("usage: passes coverage|calibration|bias|cost|dump [options] SCENE...".into());
     }
     Ok(o)
 }
@@ -535,6 +539,69 @@ fn cost(o: &Options, scene: &Path) {
     );
 }
 
+/// Per seed, after each pass ending at a power of two from 8 spp on (passes of 2 samples, every
+/// weight one): per pixel in row order the half-images A and B, as little-endian f64 to
+/// $TMPDIR/lumis-passes-dump-SCENE.bin (seed-major, then spp, then A, then B), beside the
+/// reference's cache: what an error estimator can be tried on offline.
+fn dump(o: &Options, scene: &Path) {
+    use std::io::Write;
+    let _ = reference(o, scene);
+    let mut loaded = load(o, scene, &[]);
+    let settings = Settings {
+        stopping: Stopping::Samples {
+            spp: o.spp,
+            passes: o.spp / 2,
+        },
+        metric: o.metric,
+        confidence: o.confidence,
+    };
+    let path = std::env::temp_dir().join(format!(
+        "lumis-passes-dump-{}.bin",
+        scene.file_stem().unwrap().to_string_lossy()
+    ));
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&path).expect("dump"));
+    for seed in 0..o.renders {
+        loaded.scene.seed = seed as u64;
+        loaded.integrator.preprocess(&loaded.scene);
+        let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
+        let mut frames: Vec<Vec<f64>> = Vec::new();
+        lumis::progressive::run(
+            &loaded.scene,
+            loaded.integrator.as_mut(),
+            &settings,
+            &mut state,
+            Scope::whole(0),
+            &AtomicBool::new(false),
+            &|_| {},
+            &mut |state| {
+                let end = state.history.samples();
+                if end >= 8 && end.is_power_of_two() {
+                    let sums = &state.sums;
+                    let n = sums.samples.len();
+                    let mut a = vec![0.0; n];
+                    let mut b = vec![0.0; n];
+                    for p in 0..n {
+                        let half = sums.weight[p] / 2.0;
+                        let r = sums.row_index(p);
+                        a[r] = sums.halves[p][0] / half;
+                        b[r] = sums.halves[p][1] / half;
+                    }
+                    frames.push(a);
+                    frames.push(b);
+                }
+                Control::Continue
+            },
+        )
+        .expect("render");
+        for f in &frames {
+            for v in f {
+                out.write_all(&v.to_le_bytes()).unwrap();
+            }
+        }
+    }
+    eprintln!("{}", path.display());
+}
+
 fn main() {
     lumis::link_plugins();
     let o = match options() {
@@ -567,6 +634,7 @@ fn main() {
             "coverage" => coverage(&o, scene),
             "bias" => bias(&o, scene),
             "calibration" => calibration(&o, scene),
+            "dump" => dump(&o, scene),
             _ => cost(&o, scene),
         }
     }

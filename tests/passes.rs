@@ -632,9 +632,36 @@ fn resuming_refuses_another_render_and_damaged_files() {
     assert!(e.contains("is a complete render"), "{e}");
 }
 
+/// The relative MSE estimated from the half-images with the plug-in denominator Ŷ² + ε, which
+/// reads low (core/src/error_estimate.rs): what decides the biased rule's stop, so that the rule
+/// stops early, as a naive renderer's would.
+fn plug_in_error(sums: &lumis::film_sums::FilmSums) -> f64 {
+    let halves: Vec<(f64, f64)> = (0..sums.samples.len())
+        .filter(|&p| sums.samples[p] > 0)
+        .map(|p| {
+            let half = sums.weight[p] / 2.0;
+            (sums.halves[p][0] / half, sums.halves[p][1] / half)
+        })
+        .collect();
+    let n = halves.len() as f64;
+    let epsilon = (0.01 * halves.iter().map(|(a, b)| (a + b) / 2.0).sum::<f64>() / n).powi(2);
+    halves
+        .iter()
+        .map(|(a, b)| {
+            let d = ((a + b) / 2.0).powi(2) + epsilon;
+            if d > 0.0 {
+                (a - b).powi(2) / (4.0 * d)
+            } else {
+                0.0
+            }
+        })
+        .sum::<f64>()
+        / n
+}
+
 /// A render's image mean luminance under `settings` from `seed`, and its samples per pixel;
-/// `stop_below`: the biased rule, stopped after the first pass whose own error estimate is below
-/// it (equal weights).
+/// `stop_below`: the biased rule, stopped after the first pass whose plug-in error estimate
+/// ([`plug_in_error`]) is below it (equal weights).
 fn image_mean(
     loaded: &mut lumis::scene::load::LoadedScene,
     settings: &Settings,
@@ -652,8 +679,12 @@ fn image_mean(
         Scope::whole(0),
         &AtomicBool::new(false),
         &|_| {},
-        &mut |state| match (stop_below, state.history.raw_error()) {
-            (Some(target), Some(e)) if e.value < target => Control::Stop,
+        &mut |state| match stop_below {
+            Some(target)
+                if !state.sums.halves.is_empty() && plug_in_error(&state.sums) < target =>
+            {
+                Control::Stop
+            }
             _ => Control::Continue,
         },
     )

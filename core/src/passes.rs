@@ -499,13 +499,15 @@ impl History {
     }
 
     /// The image's error after the last pass, as the render states it: the half-image estimate
-    /// raised for its small-sample bias ([`History::raw_error`] is the estimate itself).
+    /// and its interval's high end raised for its small-sample bias, the low end not (a raise
+    /// for bright samples not yet seen says nothing of how low the error may be);
+    /// [`History::raw_error`] is the estimate itself.
     pub fn error(&self) -> Option<ErrorEstimate> {
         let raw = self.raw_error()?;
         let f = self.small_sample_factor();
         Some(ErrorEstimate {
             value: raw.value * f,
-            low: raw.low * f,
+            low: raw.low,
             high: raw.high * f,
             variance: raw.variance * f * f,
             ..raw
