@@ -8,7 +8,7 @@
 use super::description::{PluginSpec, SceneDescription, ShapeDescription};
 use super::overrides::Override;
 use super::references::SceneReferences;
-use super::shape_check::check_shape;
+use super::shape_check::{check_shape, has_area};
 use super::transform::transform_matrix;
 use super::{Scene, budget, gltf, gltf_scene, light_check, obj, ply, serialized};
 use crate::bsdf::{Absorber, Bsdf, BsdfFlags};
@@ -166,6 +166,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     let mut emitters: Vec<Arc<dyn Emitter>> = Vec::new();
     let mut emitter_weights = Vec::new();
     let mut emitting_triangles = 0u64;
+    let mut warnings = Vec::new();
     for (i, shape) in desc.shapes.iter().enumerate() {
         let label = format!("shapes[{i}] ({})", shape.kind);
         let shape_err = |e| match e {
@@ -190,7 +191,17 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
                         }
                     ))
                 })?;
-                let (geometry, mapping) = build_shape(shape, base).map_err(shape_err)?;
+                let (geometry, mapping, flat_file) = build_shape(shape, base).map_err(shape_err)?;
+                // Invisible, so left out as Mitsuba leaves it; an emitter of no area is refused
+                // below (`check_shape`).
+                if flat_file && shape.emitter.is_none() {
+                    warnings.push(format!(
+                        "{label}: no triangle of `{}` has an area (each is a line or a point in \
+                         the file itself): the shape is invisible and left out",
+                        shape.file.as_deref().unwrap_or_default()
+                    ));
+                    continue;
+                }
                 parts.push((bsdf, geometry, mapping));
             }
             None => {
@@ -335,7 +346,7 @@ pub fn build_scene(desc: SceneDescription, path: &Path) -> Result<LoadedScene, S
     budget::add_film(&mut memory, &window, 3 + channels as u64);
     budget::add_geometry(&mut memory, scene.geometry.shapes(), emitting_triangles);
     memory.check(&memory_limit).map_err(err)?;
-    let warnings = light_check::light_warnings(&scene);
+    warnings.extend(light_check::light_warnings(&scene));
     Ok(LoadedScene {
         scene,
         integrator,
@@ -495,12 +506,14 @@ fn check_shape_fields(shape: &ShapeDescription) -> Result<(), ShapeError> {
     Ok(())
 }
 
-/// The shape's geometry, and how its points map to texture coordinates (Mitsuba's
-/// parameterisations: in the shape's own frame for a sphere and a disk).
+/// The shape's geometry, how its points map to texture coordinates (Mitsuba's
+/// parameterisations: in the shape's own frame for a sphere and a disk), and whether it is a
+/// mesh read from a file none of whose triangles has an area in the file's own coordinates (as
+/// some exported scenes hold: lines kept as triangles).
 fn build_shape(
     shape: &ShapeDescription,
     base: &Path,
-) -> Result<(ShapeGeometry, UvMapping), ShapeError> {
+) -> Result<(ShapeGeometry, UvMapping, bool), ShapeError> {
     let scene_err = |m: String| ShapeError::Scene(m);
     check_shape_fields(shape)?;
     let matrix = transform_matrix(&shape.transform).map_err(scene_err)?;
@@ -566,7 +579,7 @@ fn build_shape(
                 radius: radius * s.x,
             });
             let to_object = glam::Mat3::from_mat4(matrix).inverse();
-            return Ok((sphere, UvMapping::Sphere { to_object }));
+            return Ok((sphere, UvMapping::Sphere { to_object }, false));
         }
     };
     let mapping = match shape.kind.as_str() {
@@ -576,9 +589,12 @@ fn build_shape(
         },
         _ => UvMapping::Intrinsic,
     };
+    let flat_file =
+        matches!(shape.kind.as_str(), "gltf" | "obj" | "ply" | "serialized") && !has_area(&mesh);
     Ok((
         ShapeGeometry::Mesh(finish_mesh(shape, mesh, &matrix)),
         mapping,
+        flat_file,
     ))
 }
 

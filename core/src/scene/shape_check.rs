@@ -2,7 +2,7 @@
 //! is wrong: the limits within which the BVH and the intersection arithmetic stay exact
 //! (docs/robustness.md).
 
-use crate::geometry::ShapeGeometry;
+use crate::geometry::{Mesh, ShapeGeometry};
 use crate::limits::{MAX_COORDINATE, MIN_SHAPE_SIZE, fmt_f32};
 use glam::Vec3;
 
@@ -40,11 +40,7 @@ pub fn check_shape(shape: &ShapeGeometry) -> Result<(), String> {
                     fmt_f32(MIN_SHAPE_SIZE)
                 ));
             }
-            let has_area = (0..mesh.indices.len()).any(|i| {
-                let [a, b, c] = mesh.triangle(i);
-                (b - a).cross(c - a) != Vec3::ZERO
-            });
-            if !has_area {
+            if !has_area(mesh) {
                 return Err(
                     "none of its triangles has an area at f32 precision (the shape is flat, or too small for its distance from the origin)"
                         .into(),
@@ -53,6 +49,14 @@ pub fn check_shape(shape: &ShapeGeometry) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// Whether at least one of the mesh's triangles has an area at f32 precision.
+pub fn has_area(mesh: &Mesh) -> bool {
+    (0..mesh.indices.len()).any(|i| {
+        let [a, b, c] = mesh.triangle(i);
+        (b - a).cross(c - a) != Vec3::ZERO
+    })
 }
 
 /// Checks that every coordinate of a shape is finite and within ±[`MAX_COORDINATE`], which the
