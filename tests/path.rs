@@ -45,7 +45,7 @@ fn direct_and_path_pairs() -> Vec<(Vec<&'static str>, Vec<&'static str>)> {
             direct(&["weighting=\"balance\"", "fixed=0"]),
         ),
         (
-            direct(&["type=optimal_mis"]),
+            direct(&["type=optimal_mis", "mode=\"progressive\""]),
             direct(&["weighting=\"optimal_mis\""]),
         ),
         (
@@ -673,22 +673,49 @@ fn cornell_path(extra: &[&str]) -> Vec<String> {
 }
 
 /// `optimal_mis` at every vertex gives `path` balance's mean on the Cornell box with its
-/// indirect light. Its per-pixel variance estimate is heavy-tailed at the deeper vertices (the
-/// per-pixel test could detect only 4.65 % under one seed), so the test compares renders' image
-/// means instead (tests [`same_image_mean`]), with power: 2 % detected with probability 0.9.
+/// indirect light: with N = 16 at the first vertex and 4 past it (its progressive estimator at
+/// every vertex), and with 4 and 2 (balance past the first: the direct estimator there read
+/// 40–80 % high, its fit interpolating the vertex's two samples). Its pixels are heavy-tailed
+/// (the per-pixel test could detect only 4.65 % under one seed), so the test compares renders'
+/// image means instead (tests [`same_image_mean`]), with power: 2 % detected with probability
+/// 0.9.
 #[test]
 fn optimal_mis_gives_the_same_mean_with_indirect_light() {
     let file = repo_path("scenes/cornell.ron");
+    let optimal = |samples: &str, deep: &str| {
+        (
+            format!("path optimal_mis, {samples}, {deep}"),
+            cornell_path(&["weighting=\"optimal_mis\"", samples, deep]),
+        )
+    };
     same_image_mean(
         "Cornell box, max_depth 4",
         &file,
         (16, 1, 12),
         &cornell_path(&["weighting=\"balance\"", "samples=16", "deep_samples=4"]),
-        &[(
-            "path optimal_mis".into(),
-            cornell_path(&["weighting=\"optimal_mis\"", "samples=16", "deep_samples=4"]),
-        )],
+        &[
+            optimal("samples=16", "deep_samples=4"),
+            optimal("samples=4", "deep_samples=2"),
+        ],
         0.02,
+    );
+}
+
+/// `optimal_mis` makes its own split of each vertex's samples (its progressive estimator):
+/// with another allocation, `path` names the conflict rather than weigh that allocation's
+/// phases with the direct estimator, whose bias stays in a path's image.
+#[test]
+fn optimal_mis_refuses_another_allocation() {
+    let file = repo_path("scenes/cornell.ron");
+    let overrides = cornell_path(&["weighting=\"optimal_mis\"", "allocation=\"alpha\""]);
+    let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
+    let message = common::load(&file, &overrides)
+        .err()
+        .expect("optimal_mis with the alpha allocation refused")
+        .to_string();
+    assert!(
+        message.contains("path") && message.contains("`allocation` \"fixed\" only, not \"alpha\""),
+        "{message}"
     );
 }
 

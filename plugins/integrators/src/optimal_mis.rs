@@ -260,10 +260,13 @@ impl Weighting for ClippedOptimal {
     }
 }
 
-/// The progressive mode: M samples at ½ (balance, setting up Â), then N − M at ½ weighed by
+/// The progressive mode: M samples at α (balance, setting up Â), then N − M at α weighed by
 /// [`ClippedOptimal`] with the first phase's coefficients (balance if Â was ill-conditioned):
-/// its own weights, so a [`Method`], given no weighting.
+/// its own weights, so a [`Method`], given no weighting. α is ½ in this plugin (`path` gives
+/// its `fixed`).
 pub struct Progressive {
+    /// α, the fraction of each phase's samples drawn by BSDF sampling.
+    pub alpha: f64,
     /// N, samples per light per camera sample.
     pub samples: u32,
     /// M, the first phase's samples.
@@ -280,12 +283,12 @@ impl Method for Progressive {
             measured: rest < 2,
         };
         let first = sampling.phase(
-            SampleSplit::new(0.5, m),
+            SampleSplit::new(self.alpha, m),
             first_role,
             &WithBothDensities(PerSample(Balance)),
             &mut (),
         );
-        let alpha = SampleSplit::new(0.5, n).alpha();
+        let alpha = SampleSplit::new(self.alpha, n).alpha();
         if rest == 0 {
             return LightEstimate {
                 value: first,
@@ -299,7 +302,7 @@ impl Method for Progressive {
             counted: true,
             measured: rest >= 2,
         };
-        let split = SampleSplit::new(0.5, rest);
+        let split = SampleSplit::new(self.alpha, rest);
         let second = match coefficients {
             Some(a) => sampling.phase(split, second_role, &ClippedOptimal(a), &mut ()),
             None => sampling.phase(split, second_role, &PerSample(Balance), &mut ()),
@@ -323,7 +326,14 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     }
     let first = if given == 0 { samples / 2 } else { given };
     let first = at_most_samples(params, ALPHA_SAMPLES, first, samples, "")?;
-    MisIntegrator::boxed(params, Progressive { samples, first })
+    MisIntegrator::boxed(
+        params,
+        Progressive {
+            alpha: 0.5,
+            samples,
+            first,
+        },
+    )
 }
 
 inventory::submit! {

@@ -26,8 +26,9 @@
 //! - `deep_samples` (integer, default 2, in [1, 1048576]): N per light at the vertices past the
 //!   first, split n_B = ⌊α N + ½⌋ with α = `fixed` for the fixed allocation, ½ for the others.
 //! - `weighting` (choice, default "power"): how each phase's samples are weighed, at every
-//!   vertex: "balance", "power" (Mitsuba's), "max", "cutoff", "optimal_mis" (the direct
-//!   optimal weights, consistent rather than unbiased).
+//!   vertex: "balance", "power" (Mitsuba's), "max", "cutoff", "optimal_mis" (the optimal
+//!   weights by Kondapaneni et al.'s progressive estimator, unbiased, at vertices of N ≥ 4
+//!   samples per light, balance at the others; with `allocation` "fixed" only).
 //! - `threshold` (float, default 0.1, in [0, 1]): the cutoff heuristic's, with "cutoff".
 //! - `allocation` (choice, default "fixed"): how the first vertex's N samples are split, as
 //!   the direct plugin of that name: "fixed" (n_B = ⌊α N + ½⌋ with α = `fixed`, at every
@@ -72,7 +73,7 @@ use crate::estimator::{
 use crate::fixed_alpha::FixedAlpha;
 use crate::max::Maximum;
 use crate::mis::{SAMPLES_SPEC, read_samples};
-use crate::optimal_mis::DirectOptimal;
+use crate::optimal_mis::Progressive;
 use crate::power::Power;
 use crate::sampling::{LightSampling, PhaseBuffers};
 use crate::shading_point::ShadingPoint;
@@ -394,15 +395,39 @@ pub struct Path {
     aovs: PathAovs,
 }
 
-/// A weighting by its name in [`WEIGHTINGS`].
+/// A per-sample weighting by its name in [`WEIGHTINGS`] (`optimal_mis` is a method of its own:
+/// [`fixed_method`]).
 fn weighting_named(name: &str, threshold: f32) -> Box<dyn Weighting> {
     match name {
-        balance::NAME => Box::new(PerSample(Balance)),
         power::NAME => Box::new(PerSample(Power)),
         max::NAME => Box::new(PerSample(Maximum)),
         cutoff::NAME => Box::new(PerSample(cutoff::Cutoff { threshold })),
-        _ => Box::new(DirectOptimal),
+        _ => Box::new(PerSample(Balance)),
     }
+}
+
+/// Fewest samples per light at a vertex for `optimal_mis`'s estimate: a first phase of M = N/2
+/// ≥ 2 draws both techniques, so that its Â can be regular.
+const OPTIMAL_MIN_SAMPLES: u32 = 4;
+
+/// The fixed split of N = `samples` at `alpha`, weighed by weighting `name`. `optimal_mis` is
+/// Kondapaneni et al.'s progressive estimator, unbiased, rather than their direct one: a
+/// vertex's N does not grow with the camera samples, so the direct estimator's O(1/N) bias
+/// would stay in the image (at N = 2 its fit interpolates the two samples, and where both
+/// reach a small light it returns the light's value over the whole hemisphere). Below
+/// [`OPTIMAL_MIN_SAMPLES`] its first phase would be one sample, Â singular: balance.
+fn fixed_method(alpha: f64, samples: u32, name: &str, threshold: f32) -> Box<dyn Method> {
+    if name == optimal_mis::NAME && samples >= OPTIMAL_MIN_SAMPLES {
+        return Box::new(Progressive {
+            alpha,
+            samples,
+            first: samples / 2,
+        });
+    }
+    Box::new(Weighted(
+        FixedAlpha { alpha, samples },
+        weighting_named(name, threshold),
+    ))
 }
 
 /// The first vertex's method: allocation `name` ([`ALLOCATIONS`]) with its parameters, for N =
@@ -411,13 +436,22 @@ fn first_method(
     params: &mut Params,
     name: &str,
     samples: u32,
-    weighting: Box<dyn Weighting>,
+    (weighting_name, threshold): (&str, f32),
 ) -> Result<Box<dyn Method>, PluginError> {
+    if name == FIXED {
+        let alpha = params.float(FIXED)? as f64;
+        return Ok(fixed_method(alpha, samples, weighting_name, threshold));
+    }
+    if weighting_name == optimal_mis::NAME {
+        return Err(PluginError::Invalid(format!(
+            "{}: `{WEIGHTING}` {:?} makes its own split of each vertex's samples (its \
+             progressive estimator); it takes `{ALLOCATION}` {FIXED:?} only, not {name:?}",
+            params.plugin(),
+            optimal_mis::NAME
+        )));
+    }
+    let weighting = weighting_named(weighting_name, threshold);
     Ok(match name {
-        FIXED => {
-            let alpha = params.float(FIXED)? as f64;
-            Box::new(Weighted(FixedAlpha { alpha, samples }, weighting))
-        }
         alpha::NAME => Box::new(Weighted(
             alpha::read_allocation(params, samples)?,
             weighting,
@@ -459,12 +493,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
         0.0
     };
     let allocation = params.choice(ALLOCATION)?;
-    let first = first_method(
-        params,
-        allocation,
-        samples,
-        weighting_named(weighting, threshold),
-    )?;
+    let first = first_method(params, allocation, samples, (weighting, threshold))?;
     // The fixed allocation's α holds at every vertex; an adaptive one's statistics describe the
     // first vertex only (issue 47 learns α at the others), which get the balanced split.
     let deep_alpha = if allocation == FIXED {
@@ -472,13 +501,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     } else {
         0.5
     };
-    let deeper = Box::new(Weighted(
-        FixedAlpha {
-            alpha: deep_alpha,
-            samples: deep_samples,
-        },
-        weighting_named(weighting, threshold),
-    ));
+    let deeper = fixed_method(deep_alpha, deep_samples, weighting, threshold);
     let deep = match params.choice(DEEP_ALLOCATION)? {
         MIXTURE => Deep::Mixture(
             params
