@@ -129,20 +129,29 @@ impl<'a> PilotSamples<'a> {
         }
     }
 
-    /// (y, r_B, r_L) of a record, if it is not black and has a positive finite p_s.
-    #[inline]
-    fn term(&self, r: &SampleRecord) -> Option<(f64, f64, f64)> {
+    /// (f, p_s, p_B, p_L) of a record, if it is not black and has a positive finite p_s: the
+    /// one filter of [`term`](Self::term) and [`weighted_densities`](Self::weighted_densities)
+    /// (a Dirac sample's as p_s = β, p_B = 1, p_L = 0).
+    #[inline(always)]
+    fn densities(&self, r: &SampleRecord) -> Option<(f64, f64, f64, f64)> {
         if r.is_black() {
             return None;
         }
         let beta = self.beta;
         let f = luminance(r.f) as f64;
         if r.delta {
-            return (beta > 0.0 && f != 0.0).then(|| (f / beta, 1.0 / beta, 0.0));
+            return (beta > 0.0 && f != 0.0).then_some((f, beta, 1.0, 0.0));
         }
         let (p_b, p_l) = (r.p_bsdf as f64, r.p_light as f64);
         let p_s = beta * p_b + (1.0 - beta) * p_l;
-        (p_s > 0.0 && p_s.is_finite() && f != 0.0).then(|| (f / p_s, p_b / p_s, p_l / p_s))
+        (p_s > 0.0 && p_s.is_finite() && f != 0.0).then_some((f, p_s, p_b, p_l))
+    }
+
+    /// (y, r_B, r_L) of a record, if it is not black and has a positive finite p_s.
+    #[inline]
+    fn term(&self, r: &SampleRecord) -> Option<(f64, f64, f64)> {
+        self.densities(r)
+            .map(|(f, p_s, p_b, p_l)| (f / p_s, p_b / p_s, p_l / p_s))
     }
 
     /// (y, r_B, r_L) of every record that is not black and has a positive finite p_s.
@@ -358,22 +367,12 @@ impl<'a> PilotSamples<'a> {
         self.second_moments(nodes)
     }
 
-    /// (f² / p_s, p_B, p_L) of a record, as [`term`](Self::term) filters them: y² / d(α) is
-    /// the first over p_L + α (p_B − p_L) (a Dirac sample's: f_rec² / β over α, as p_B = 1,
-    /// p_L = 0).
+    /// (f² / p_s, p_B, p_L) of a record: y² / d(α) is the first over p_L + α (p_B − p_L) (a
+    /// Dirac sample's: f_rec² / β over α).
     #[inline(always)]
     fn weighted_densities(&self, r: &SampleRecord) -> Option<(f64, f64, f64)> {
-        if r.is_black() {
-            return None;
-        }
-        let beta = self.beta;
-        let f = luminance(r.f) as f64;
-        if r.delta {
-            return (beta > 0.0 && f != 0.0).then(|| (f * f / beta, 1.0, 0.0));
-        }
-        let (p_b, p_l) = (r.p_bsdf as f64, r.p_light as f64);
-        let p_s = beta * p_b + (1.0 - beta) * p_l;
-        (p_s > 0.0 && p_s.is_finite() && f != 0.0).then(|| (f * f / p_s, p_b, p_l))
+        self.densities(r)
+            .map(|(f, p_s, p_b, p_l)| (f * f / p_s, p_b, p_l))
     }
 
     fn objective_value(&self, objective: Objective, alpha: f64) -> f64 {
