@@ -44,10 +44,13 @@
 //! - `deep_allocation` (choice, default "split"): the vertices past the first that reflect only
 //!   and are not a Dirac lobe alone: "split" estimates each light as above (N =
 //!   `deep_samples`, `weighting`); the others draw one continuation from the paper's one-sample
-//!   mixture q_α = α p_B + (1 − α) p_L of BSDF sampling and sampling one light J chosen
-//!   uniformly among the non-delta lights, the path going on along whichever technique drew it
+//!   mixture q_α = α p_B + (1 − α) p_L of BSDF sampling and sampling one light J chosen among
+//!   the non-delta lights in proportion to their `sampling_weight`s (uniformly by default; any
+//!   choice is unbiased, as J is drawn before the direction), the path going on along whichever
+//!   technique drew it
 //!   with weight f / q_α (the one-sample balance heuristic), the emission it meets counted at the
-//!   vertex (delta lights keep their own sample each, by `lights`). α is `fixed` for "mixture";
+//!   vertex (delta lights keep their own sample each, by `lights`: with "one", one delta light
+//!   chosen among them by their weights). α is `fixed` for "mixture";
 //!   read from a world-space cache ([`crate::vertex_cache`]) filled by the render's earlier
 //!   passes for "learned" (the α of least estimated second moment) and "guiding_fraction"
 //!   (practical path guiding's learned BSDF-sampling fraction, Müller et al.); ½ in the first
@@ -366,12 +369,31 @@ enum Deep {
     Learned(Learning),
 }
 
-/// The lights a mixture vertex treats apart, found in `preprocess`.
+/// The lights a mixture vertex treats apart, found in `preprocess`, each list with the running
+/// sums of its lights' `sampling_weight`s where they are not all equal (empty: uniformly).
 #[derive(Default)]
 struct LightLists {
     /// Non-delta lights: J is chosen among them.
     mixed: Vec<usize>,
+    mixed_cdf: Vec<f32>,
     delta: Vec<usize>,
+    delta_cdf: Vec<f32>,
+}
+
+/// The running sums of `weights`, or nothing where they are all equal (a uniform choice, whose
+/// arithmetic is the same without `sampling_weight`s as before them).
+fn weights_cdf(weights: impl Iterator<Item = f32> + Clone) -> Vec<f32> {
+    let mut all = weights.clone();
+    let first = all.next();
+    if all.all(|w| Some(w) == first) {
+        return Vec::new();
+    }
+    weights
+        .scan(0.0f32, |sum, w| {
+            *sum += w;
+            Some(*sum)
+        })
+        .collect()
 }
 
 /// The path tracer: the first vertex's method, the deeper vertices', and the path's rules.
@@ -729,7 +751,8 @@ impl Path {
     }
 
     /// A mixture vertex: delta lights sampled as `lights` says, then one direction from
-    /// q_α = α p_B + (1 − α) p_J for a light J chosen uniformly among the non-delta ones, traced
+    /// q_α = α p_B + (1 − α) p_J for a light J chosen among the non-delta ones by their
+    /// `sampling_weight`s, traced
     /// to its closest surface; `None` where the sample is black (the path ends). The sample's
     /// densities are left in `pending` for the cache.
     fn mixture_vertex(
@@ -749,15 +772,17 @@ impl Path {
             }
             Lights::One if !delta.is_empty() => {
                 let u = sample.sampler.next_1d();
-                let light = delta[((u * delta.len() as f32) as usize).min(delta.len() - 1)];
-                let value = estimate_delta_light(scene, sp, light, &mut sample.sampler);
-                path.add(value * delta.len() as f32);
+                let (index, inverse_probability) =
+                    choose_light(&self.light_lists.delta_cdf, u, delta.len());
+                let value = estimate_delta_light(scene, sp, delta[index], &mut sample.sampler);
+                path.add(value * inverse_probability);
             }
             Lights::One => {}
         }
         let mixed = &self.light_lists.mixed;
         let u = sample.sampler.next_1d();
-        let light = mixed[((u * mixed.len() as f32) as usize).min(mixed.len() - 1)];
+        // Not divided by J's probability: given J, f / q_α is unbiased on its own.
+        let light = mixed[choose_light(&self.light_lists.mixed_cdf, u, mixed.len()).0];
         let alpha = match (self.deep, &self.cache) {
             (Deep::Mixture(alpha), _) => alpha,
             (_, Some(cache)) => {
@@ -969,21 +994,16 @@ impl Integrator for Path {
         self.first.preprocess(scene);
         self.deeper.preprocess(scene);
         let weights = &scene.emitter_weights;
-        self.light_cdf = if weights.iter().all(|&w| w == weights[0]) {
-            Vec::new()
-        } else {
-            weights
-                .iter()
-                .scan(0.0f32, |sum, &w| {
-                    *sum += w;
-                    Some(*sum)
-                })
-                .collect()
-        };
+        self.light_cdf = weights_cdf(weights.iter().copied());
         if self.deep != Deep::Split {
-            let (delta, mixed) =
+            let (delta, mixed): (Vec<usize>, Vec<usize>) =
                 (0..scene.emitters.len()).partition(|&e| scene.emitters[e].is_delta());
-            self.light_lists = LightLists { mixed, delta };
+            self.light_lists = LightLists {
+                mixed_cdf: weights_cdf(mixed.iter().map(|&e| weights[e])),
+                mixed,
+                delta_cdf: weights_cdf(delta.iter().map(|&e| weights[e])),
+                delta,
+            };
         }
         if let Deep::Learned(learning) = self.deep {
             self.cache = Some(VertexCache::new(
@@ -1125,7 +1145,33 @@ inventory::submit! {
 
 #[cfg(test)]
 mod tests {
-    use super::choose_light;
+    use super::{choose_light, weights_cdf};
+
+    /// A mixture vertex chooses J among the non-delta lights, and `lights: one` its delta light
+    /// among the delta ones, in proportion to their own `sampling_weight`s: each list's running
+    /// sums are those of its lights' weights, and equal weights (the default) keep the uniform
+    /// choice's arithmetic.
+    #[test]
+    fn each_light_list_chooses_by_its_own_weights() {
+        // Lights 0 and 2 are delta, 1, 3 and 4 are not.
+        let weights = [8.0f32, 1.0, 8.0, 4.0, 0.5];
+        let mixed = [1usize, 3, 4];
+        let cdf = weights_cdf(mixed.iter().map(|&e| weights[e]));
+        assert_eq!(cdf, [1.0, 5.0, 5.5]);
+        let n = 11_000;
+        let mut counts = [0usize; 5];
+        for i in 0..n {
+            let u = (i as f32 + 0.5) / n as f32;
+            counts[mixed[choose_light(&cdf, u, mixed.len()).0]] += 1;
+        }
+        for (count, expected) in counts.iter().zip([0, 2000, 0, 8000, 1000]) {
+            assert!(count.abs_diff(expected) <= 1, "{counts:?}");
+        }
+        let delta = [0usize, 2];
+        assert!(weights_cdf(delta.iter().map(|&e| weights[e])).is_empty());
+        assert!(weights_cdf([3.0f32].into_iter()).is_empty());
+        assert!(weights_cdf(std::iter::empty::<f32>()).is_empty());
+    }
 
     /// With `sampling_weight`s, each light is chosen with probability w_j / Σ w (over a
     /// stratified grid of u, exactly up to one stratum), never one of weight 0, and its estimate
