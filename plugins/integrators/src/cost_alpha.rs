@@ -25,16 +25,22 @@
 //!   multiplied by the cost (see `exact_alpha`).
 //! - `cost_ratio` (float, default 0, in [0, 1000]): c_B / c_L for every light; 0 measures the
 //!   costs of each light on the scene.
+//! - `statistics` (choice, default "pilot"): where V̂ comes from: "pilot" — the M samples at
+//!   α = ½ per `mode`; "passes" — the render's earlier passes (a render in passes,
+//!   docs/integrators.md, "Learned α"): each camera sample adds its V̂ at 17 α, unclamped, to
+//!   its pixel's sums, and α of pass k minimises the mean V̂ of passes < k times the cost
+//!   (`mode` and `alpha_samples` unused; α = ½ in the first pass).
 //! - `aovs` (list, default []): any of "alpha", "sampling_variance", "samples".
 
 use crate::allocation::Weighted;
 use crate::alpha_family::{
-    ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, TwoPhases, VARIANCE_SPEC,
-    read_clamp, read_mode, read_stratified,
+    ALPHA_SAMPLES_SPEC, AlphaRule, CLAMP_SPEC, MODE_SPEC, PilotAlpha, STATISTICS_SPEC, TwoPhases,
+    VARIANCE_SPEC, read_clamp, read_learns, read_mode, read_stratified,
 };
+use crate::learned::{LearnedAlpha, Pooled};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
-use crate::pilot::{SampleCosts, measure_costs};
+use crate::pilot::{COST_BATCH, COST_GRID, SampleCosts, measure_costs};
 use crate::weighting::{Balance, PerSample};
 use lumis_core::integrator::Integrator;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -45,10 +51,6 @@ use lumis_core::scene::Scene;
 pub const NAME: &str = "cost_alpha";
 /// Parameter: c_B / c_L, or 0 to measure the costs.
 pub const COST_RATIO: &str = "cost_ratio";
-/// Shading points per side of the grid the costs are measured on.
-const COST_GRID: u32 = 48;
-/// Samples per timed batch.
-const COST_BATCH: u32 = 8;
 
 static PARAMS: &[ParamSpec] = &[
     SAMPLES_SPEC,
@@ -66,6 +68,7 @@ static PARAMS: &[ParamSpec] = &[
         unit: "",
         description: "cost of a BSDF sample over that of a light sample, for every light; 0: measured per light on the scene",
     },
+    STATISTICS_SPEC,
     AOVS_SPEC,
 ];
 
@@ -91,10 +94,7 @@ impl AlphaRule for CostAware {
                 .get(light)
                 .copied()
                 .flatten()
-                .unwrap_or(SampleCosts {
-                    bsdf: 1.0,
-                    light: 1.0,
-                }),
+                .unwrap_or(SampleCosts::EQUAL),
         };
         let objective = Objective::Cost {
             stratified: self.stratified,
@@ -138,6 +138,14 @@ pub fn read_allocation(
 
 fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
     let samples = read_samples(params)?;
+    if read_learns(params)? {
+        let clamp = read_clamp(params)?;
+        let stratified = read_stratified(params)?;
+        let ratio = params.float(COST_RATIO)? as f64;
+        let allocation = LearnedAlpha::new(samples, Pooled::Cost { stratified }, clamp, 0)
+            .with_cost_ratio((ratio > 0.0).then_some(ratio));
+        return MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)));
+    }
     let allocation = read_allocation(params, samples)?;
     MisIntegrator::boxed(params, Weighted(allocation, PerSample(Balance)))
 }

@@ -1,12 +1,13 @@
-//! α learned from the render's own passes (`statistics: "passes"` of `alpha`, `exact_alpha`
-//! and `pooled_alpha`): no pilot; every sample of a pass is drawn at the α its pixel and light
+//! α learned from the render's own passes (`statistics: "passes"` of `alpha`, `exact_alpha`,
+//! `pooled_alpha` and `cost_alpha`): no pilot; every sample of a pass is drawn at the α its pixel and light
 //! were given before the pass, and adds what it says about every other α to the pixel's sums
 //! (docs/integrators.md, "Learned α").
 //!
 //! A light's N samples at a shading point, drawn at split β, estimate the objective at any α
 //! ([`PilotSamples`] reads records at any split): each camera sample adds the objective at
-//! [`NODES`] evenly spaced α of the clamp interval (the mixture's second moment m̂(α) or the
-//! stratified variance), or the paper's Î₁, Î₂ ([`PilotSamples::second_order`]), to its pixel's
+//! [`NODES`] evenly spaced α of the clamp interval (the mixture's second moment m̂(α), the
+//! stratified variance, or for the cost-aware α the variance itself, unclamped, later weighed
+//! by each light's sample costs), or the paper's Î₁, Î₂ ([`PilotSamples::second_order`]), to its pixel's
 //! integrator sums, which core keeps across passes. Before pass k ([`LearnedAlpha::begin_pass`])
 //! the sums of passes < k, alone or pooled over the similar pixels of a window (the edge-stopping
 //! filter of `pooled_alpha`, its radius a fraction of the image so that it does not depend on the
@@ -21,7 +22,7 @@
 use crate::allocation::Allocation;
 use crate::moments::{Objective, PilotSamples};
 use crate::phase::{LightEstimate, PhaseRole, SampleSplit};
-use crate::pilot::{self, Surface};
+use crate::pilot::{self, SampleCosts, Surface};
 use crate::sampling::LightSampling;
 use crate::second_order::second_order_alpha;
 use crate::weighting::Weighting;
@@ -45,12 +46,16 @@ pub enum Pooled {
     Nodes(Objective),
     /// Î₁, Î₂ (sums), then 1 if Î₂ > 0.
     SecondOrder,
+    /// The variance V̂ (mixture, or stratified) at [`NODES`] α, unclamped, then 1 if the pilot
+    /// is informative: α minimises V̂(α) (α c_B + (1 − α) c_L), with the light's sample costs
+    /// (`cost_alpha`).
+    Cost { stratified: bool },
 }
 
 impl Pooled {
     pub fn per_light(self) -> usize {
         match self {
-            Pooled::Nodes(_) => NODES + 1,
+            Pooled::Nodes(_) | Pooled::Cost { .. } => NODES + 1,
             Pooled::SecondOrder => 3,
         }
     }
@@ -96,8 +101,14 @@ impl AlphaMap {
     }
 }
 
-/// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative.
-pub fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> {
+/// The α of `values` (one light's pooled values) in `clamp`, or None if uninformative;
+/// `costs` are the light's sample costs (read by [`Pooled::Cost`] only).
+pub fn alpha_of(
+    pooled: Pooled,
+    values: &[f32],
+    clamp: [f64; 2],
+    costs: SampleCosts,
+) -> Option<f64> {
     match pooled {
         Pooled::SecondOrder => {
             (values[2] > 0.0).then_some(())?;
@@ -105,21 +116,38 @@ pub fn alpha_of(pooled: Pooled, values: &[f32], clamp: [f64; 2]) -> Option<f64> 
         }
         Pooled::Nodes(_) => {
             (values[NODES] > 0.0).then_some(())?;
-            let v = &values[..NODES];
-            let best = (0..NODES).min_by(|&a, &b| v[a].total_cmp(&v[b]))?;
+            let v: [f64; NODES] = std::array::from_fn(|k| values[k] as f64);
+            node_minimum(&v, clamp)
+        }
+        Pooled::Cost { .. } => {
+            (values[NODES] > 0.0).then_some(())?;
+            // The pooled variance is a mean of unbiased but noisy terms: where it is nowhere
+            // positive the pilot says nothing about efficiency.
+            values[..NODES].iter().any(|&v| v > 0.0).then_some(())?;
             let step = (clamp[1] - clamp[0]) / (NODES - 1) as f64;
-            let mut alpha = clamp[0] + step * best as f64;
-            if best > 0 && best < NODES - 1 {
-                // The vertex of the parabola through the best node and its neighbours.
-                let (l, c, r) = (v[best - 1] as f64, v[best] as f64, v[best + 1] as f64);
-                let curvature = l - 2.0 * c + r;
-                if curvature > 0.0 && curvature.is_finite() {
-                    alpha += step * (0.5 * (l - r) / curvature).clamp(-1.0, 1.0);
-                }
-            }
-            Some(alpha)
+            let v: [f64; NODES] = std::array::from_fn(|k| {
+                let alpha = clamp[0] + step * k as f64;
+                (values[k] as f64).max(0.0) * (alpha * costs.bsdf + (1.0 - alpha) * costs.light)
+            });
+            node_minimum(&v, clamp)
         }
     }
+}
+
+/// The α in `clamp` at which `v`, an objective at [`NODES`] evenly spaced α of `clamp`, is least:
+/// the best node, moved to the vertex of the parabola through it and its neighbours.
+fn node_minimum(v: &[f64; NODES], clamp: [f64; 2]) -> Option<f64> {
+    let best = (0..NODES).min_by(|&a, &b| v[a].total_cmp(&v[b]))?;
+    let step = (clamp[1] - clamp[0]) / (NODES - 1) as f64;
+    let mut alpha = clamp[0] + step * best as f64;
+    if best > 0 && best < NODES - 1 {
+        let (l, c, r) = (v[best - 1], v[best], v[best + 1]);
+        let curvature = l - 2.0 * c + r;
+        if curvature > 0.0 && curvature.is_finite() {
+            alpha += step * (0.5 * (l - r) / curvature).clamp(-1.0, 1.0);
+        }
+    }
+    Some(alpha)
 }
 
 /// The allocation: N samples at the α its pixel and light learned from the passes before.
@@ -132,6 +160,10 @@ pub struct LearnedAlpha {
     /// alone).
     pub radius: u32,
     alphas: AlphaMap,
+    /// c_B / c_L given for every light ([`Pooled::Cost`]), or None to measure them.
+    cost_ratio: Option<f64>,
+    /// Each light's sample costs ([`Pooled::Cost`]; equal where unmeasured).
+    costs: Vec<Option<SampleCosts>>,
     /// What camera sample 0 of each pixel hit (row order), found once when pooling.
     surfaces: Vec<Option<Surface>>,
     /// The pixels' statistics in row order, sized once.
@@ -147,9 +179,36 @@ impl LearnedAlpha {
             clamp,
             radius,
             alphas: AlphaMap::default(),
+            cost_ratio: None,
+            costs: Vec::new(),
             surfaces: Vec::new(),
             values: Vec::new(),
             learning: false,
+        }
+    }
+
+    /// With [`Pooled::Cost`]: the costs' ratio c_B / c_L for every light, or None to measure
+    /// each light's on the scene in `preprocess` (as `cost_alpha` does).
+    pub fn with_cost_ratio(self, ratio: Option<f64>) -> Self {
+        LearnedAlpha {
+            cost_ratio: ratio,
+            ..self
+        }
+    }
+
+    /// Light `light`'s sample costs: given, measured, or equal where neither.
+    fn costs(&self, light: usize) -> SampleCosts {
+        match self.cost_ratio {
+            Some(ratio) => SampleCosts {
+                bsdf: ratio,
+                light: 1.0,
+            },
+            None => self
+                .costs
+                .get(light)
+                .copied()
+                .flatten()
+                .unwrap_or(SampleCosts::EQUAL),
         }
     }
 
@@ -163,6 +222,7 @@ impl LearnedAlpha {
         let r = (self.radius as f64 * width.max(height) as f64 / REFERENCE_SIZE).round() as i64;
         let (pooled, clamp, values, surfaces) =
             (self.pooled, self.clamp, &self.values, &self.surfaces);
+        let costs: Vec<SampleCosts> = (0..lights).map(|light| self.costs(light)).collect();
         let mut alphas = vec![f32::NAN; (window.width * window.height) as usize * lights];
         alphas
             .par_chunks_mut((window.width as usize * lights).max(1))
@@ -202,7 +262,7 @@ impl LearnedAlpha {
                             *n = (s * scale) as f32;
                         }
                         normalised[per_light - 1] = count as f32;
-                        let alpha = alpha_of(pooled, &normalised, clamp)
+                        let alpha = alpha_of(pooled, &normalised, clamp, costs[light])
                             .unwrap_or(0.5)
                             .clamp(clamp[0], clamp[1]);
                         row[x as usize * lights + light] = alpha as f32;
@@ -227,6 +287,12 @@ impl Allocation for LearnedAlpha {
 
     fn pixel_sums(&self, scene: &Scene) -> usize {
         scene.emitters.len() * self.pooled.per_light()
+    }
+
+    fn preprocess(&mut self, scene: &Scene) {
+        if matches!(self.pooled, Pooled::Cost { .. }) && self.cost_ratio.is_none() {
+            self.costs = pilot::measure_costs(scene, pilot::COST_GRID, pilot::COST_BATCH);
+        }
     }
 
     fn begin_pass(&mut self, scene: &Scene, pass: &PassContext<'_>, offset: usize) {
@@ -274,6 +340,13 @@ impl Allocation for LearnedAlpha {
                     count[0] += 1.0;
                 }
             }
+            Pooled::Cost { stratified } => {
+                let (nodes, count) = out.split_at_mut(NODES);
+                let nodes: &mut [f64; NODES] = nodes.try_into().expect("NODES sums");
+                if pilot.add_variance_at_nodes(stratified, self.clamp, nodes) {
+                    count[0] += 1.0;
+                }
+            }
             Pooled::SecondOrder => {
                 let (i1, i2) = pilot.second_order();
                 if i2 > 0.0 && i1.is_finite() && i2.is_finite() {
@@ -283,5 +356,52 @@ impl Allocation for LearnedAlpha {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A variance (α − ½)² + 0.1 at the nodes of [0, 1], observed once.
+    fn parabola() -> Vec<f32> {
+        let mut values: Vec<f32> = (0..NODES)
+            .map(|k| {
+                let alpha = k as f64 / (NODES - 1) as f64;
+                ((alpha - 0.5).powi(2) + 0.1) as f32
+            })
+            .collect();
+        values.push(1.0);
+        values
+    }
+
+    /// The cost-aware α minimises V̂(α) (α c_B + (1 − α) c_L): at equal costs the variance's
+    /// minimum; with BSDF samples 3× as costly, the minimum of ((α − ½)² + 0.1)(1 + 2α), below
+    /// ½ (the root of its derivative); a variance nowhere positive, or no observation, gives
+    /// no α.
+    #[test]
+    fn the_cost_aware_alpha_weighs_the_variance_by_the_cost() {
+        let cost = Pooled::Cost { stratified: false };
+        let clamp = [0.0, 1.0];
+        let equal = alpha_of(cost, &parabola(), clamp, SampleCosts::EQUAL).unwrap();
+        assert!((equal - 0.5).abs() < 1e-6, "{equal}");
+        let dear_bsdf = SampleCosts {
+            bsdf: 3.0,
+            light: 1.0,
+        };
+        let alpha = alpha_of(cost, &parabola(), clamp, dear_bsdf).unwrap();
+        // d/dα [((α − ½)² + 0.1)(1 + 2α)] = 0: 6α² − 2α − 0.3 = 0 (expanded), α = (2 + √(4 +
+        // 7.2)) / 12.
+        let exact = (2.0 + 11.2f64.sqrt()) / 12.0;
+        assert!(
+            alpha < 0.5 && (alpha - exact).abs() < 0.01,
+            "{alpha} vs {exact}"
+        );
+        let mut flat = vec![-0.01f32; NODES];
+        flat.push(1.0);
+        assert_eq!(alpha_of(cost, &flat, clamp, dear_bsdf), None);
+        let mut unseen = parabola();
+        unseen[NODES] = 0.0;
+        assert_eq!(alpha_of(cost, &unseen, clamp, dear_bsdf), None);
     }
 }

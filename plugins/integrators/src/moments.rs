@@ -319,22 +319,62 @@ impl<'a> PilotSamples<'a> {
             }
             return true;
         }
-        // AVX runs the nodes four lanes wide; without FMA, every lane rounds as SSE2's would, so
-        // the sums are the same bit for bit on every processor.
-        #[cfg(target_arch = "x86_64")]
-        let sums = if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: the processor has AVX.
-            unsafe { self.second_moments_avx(&nodes) }
-        } else {
-            self.second_moments(&nodes)
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let sums = self.second_moments(&nodes);
-        let Some(sums) = sums else {
+        let Some(sums) = self.second_moments_at(&nodes) else {
             return false;
         };
         for (v, s) in out.iter_mut().zip(sums) {
             *v += s * self.inv_count;
+        }
+        true
+    }
+
+    /// M m̂ at each of `nodes`, if the pilot is [`informative`](Self::informative), in one
+    /// pass over the records. AVX runs the nodes four lanes wide; without FMA, every lane
+    /// rounds as SSE2's would, so the sums are the same bit for bit on every processor.
+    #[inline]
+    fn second_moments_at<const K: usize>(&self, nodes: &[f64; K]) -> Option<[f64; K]> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the processor has AVX.
+            return unsafe { self.second_moments_avx(nodes) };
+        }
+        self.second_moments(nodes)
+    }
+
+    /// Adds the variance V̂(α) at `K` evenly spaced α of `clamp` (its ends included) to `out`,
+    /// if the pilot is [`informative`](Self::informative) and every value is finite
+    /// (returned; nothing is added if not): the mixture's m̂(α) − μ̂² (μ̂² unbiased) or, with
+    /// `stratified`, the stratified estimator's, *not* clamped at 0. What a learned cost-aware
+    /// α keeps per pixel ([`crate::learned`]): each value is an unbiased estimate, so their sum
+    /// over camera samples is one too, which a clamp per sample would bias upward.
+    pub fn add_variance_at_nodes<const K: usize>(
+        &self,
+        stratified: bool,
+        clamp: [f64; 2],
+        out: &mut [f64; K],
+    ) -> bool {
+        let step = (clamp[1] - clamp[0]) / (K.max(2) - 1) as f64;
+        let nodes: [f64; K] = std::array::from_fn(|k| clamp[0] + step * k as f64);
+        let variances: [f64; K] = if stratified {
+            if !self.informative() {
+                return false;
+            }
+            nodes.map(|alpha| {
+                let s = self.sums(alpha);
+                s.second_moment - alpha * s.square_bsdf - (1.0 - alpha) * s.square_light
+            })
+        } else {
+            let Some(sums) = self.second_moments_at(&nodes) else {
+                return false;
+            };
+            let square = self.mean_and_square().1;
+            sums.map(|s| s * self.inv_count - square)
+        };
+        if !variances.iter().all(|v| v.is_finite()) {
+            return false;
+        }
+        for (o, v) in out.iter_mut().zip(variances) {
+            *o += v;
         }
         true
     }
@@ -529,6 +569,43 @@ mod tests {
         for (a, b) in [(half.0, other.0), (half.1, other.1)] {
             assert!((a - b).abs() < 0.02 * a.abs(), "{half:?} vs {other:?}");
         }
+    }
+
+    /// The variance at the nodes (what a learned cost-aware α sums) is the mixture's
+    /// ∫ f²/q_α − μ² of the box, w² / (α w + 1 − α) − w², or the stratified estimator's, and is
+    /// not clamped: a pilot whose variance estimate is below 0 adds it as it is.
+    #[test]
+    fn variances_at_nodes_match_their_definitions_unclamped() {
+        let records = box_pilot(0.1, 400);
+        let pilot = PilotSamples::from_records(&records, 400, 400);
+        let clamp = [0.025, 0.975];
+        let mut mixture = [0.0; 17];
+        let mut stratified = [0.0; 17];
+        assert!(pilot.add_variance_at_nodes(false, clamp, &mut mixture));
+        assert!(pilot.add_variance_at_nodes(true, clamp, &mut stratified));
+        for k in 0..17 {
+            let alpha = 0.025 + 0.95 * k as f64 / 16.0;
+            let exact = 0.01 / (alpha * 0.1 + 1.0 - alpha) - 0.01;
+            assert!(
+                (mixture[k] - exact).abs() < 2e-5,
+                "α {alpha}: {} vs {exact}",
+                mixture[k]
+            );
+            let unit = Objective::Cost {
+                stratified: true,
+                bsdf: 1.0,
+                light: 1.0,
+            };
+            let expected = pilot.objective(unit, alpha);
+            assert!((stratified[k].max(0.0) - expected).abs() <= 1e-12 * expected.max(1e-300));
+        }
+        // Four equal terms, all where p_B = 2 p_L: μ̂² (unbiased, from both strata) is y², and
+        // m̂(α) = y² · 1.5 / (1 + α) falls below it for α > ½.
+        let records = [SampleRecord::grey(1.0, 2.0, 1.0); 4];
+        let small = PilotSamples::from_records(&records, 2, 2);
+        let mut nodes = [0.0; 17];
+        assert!(small.add_variance_at_nodes(false, clamp, &mut nodes));
+        assert!(nodes.iter().any(|&v| v < 0.0), "{nodes:?}");
     }
 
     #[test]

@@ -224,6 +224,19 @@ pub struct SampleCosts {
     pub light: f64,
 }
 
+impl SampleCosts {
+    /// Equal costs: the cost-aware objective is the variance alone.
+    pub const EQUAL: SampleCosts = SampleCosts {
+        bsdf: 1.0,
+        light: 1.0,
+    };
+}
+
+/// Shading points per side of the grid `cost_alpha` measures its costs on.
+pub const COST_GRID: u32 = 48;
+/// Samples per timed batch of `cost_alpha`'s measure.
+pub const COST_BATCH: u32 = 8;
+
 /// Times BSDF and light sampling of every non-delta light on the scene itself, on one thread:
 /// at the shading points of a grid of up to `grid` × `grid` pixels spread over the window
 /// (camera sample 0's), batches of `batch` samples of each technique, in alternating order,

@@ -40,7 +40,7 @@ use crate::learned::{AlphaMap, LearnedAlpha, NODES, Pooled, alpha_of};
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::moments::{Objective, PilotSamples};
 use crate::phase::{LightEstimate, Observer, PhaseRole, SampleSplit};
-use crate::pilot::{self, PilotEstimates, Surface};
+use crate::pilot::{self, PilotEstimates, SampleCosts, Surface};
 use crate::sampling::LightSampling;
 use crate::second_order::SecondOrderMoments;
 use crate::weighting::{Balance, PerSample, Weighting};
@@ -132,7 +132,7 @@ fn pool(
                             }
                         }
                     }
-                    let alpha = alpha_of(pooled, &sum, clamp)
+                    let alpha = alpha_of(pooled, &sum, clamp, SampleCosts::EQUAL)
                         .unwrap_or(0.5)
                         .clamp(clamp[0], clamp[1]);
                     row[x as usize * lights + light] = alpha as f32;
@@ -189,6 +189,16 @@ impl Allocation for PooledAlpha {
                         *v = pilot.objective(objective, clamp[0] + step * k as f64) as f32;
                     }
                     out[NODES] = 1.0;
+                }
+                Pooled::Cost { stratified } => {
+                    let mut nodes = [0.0; NODES];
+                    if PilotSamples::new(phase).add_variance_at_nodes(stratified, clamp, &mut nodes)
+                    {
+                        for (v, n) in out[..NODES].iter_mut().zip(nodes) {
+                            *v = n as f32;
+                        }
+                        out[NODES] = 1.0;
+                    }
                 }
                 Pooled::SecondOrder => {
                     let mut moments = SecondOrderMoments::default();
@@ -264,17 +274,33 @@ mod tests {
             .map(|k| (k as f32 / 16.0 - 0.3).powi(2))
             .collect();
         values.push(1.0);
-        let alpha = alpha_of(Pooled::Nodes(Objective::Mixture), &values, [0.0, 1.0]).unwrap();
+        let alpha = alpha_of(
+            Pooled::Nodes(Objective::Mixture),
+            &values,
+            [0.0, 1.0],
+            SampleCosts::EQUAL,
+        )
+        .unwrap();
         assert!((alpha - 0.3).abs() < 1e-6, "{alpha}");
         // A minimum at a bound stays there.
         let mut values: Vec<f32> = (0..NODES).map(|k| k as f32).collect();
         values.push(1.0);
-        let alpha = alpha_of(Pooled::Nodes(Objective::Mixture), &values, [0.025, 0.975]);
+        let alpha = alpha_of(
+            Pooled::Nodes(Objective::Mixture),
+            &values,
+            [0.025, 0.975],
+            SampleCosts::EQUAL,
+        );
         assert_eq!(alpha, Some(0.025));
         // Uninformative: no α.
         values[NODES] = 0.0;
         assert_eq!(
-            alpha_of(Pooled::Nodes(Objective::Mixture), &values, [0.0, 1.0]),
+            alpha_of(
+                Pooled::Nodes(Objective::Mixture),
+                &values,
+                [0.0, 1.0],
+                SampleCosts::EQUAL
+            ),
             None
         );
     }
