@@ -83,19 +83,7 @@ pub struct CostAware {
 
 impl AlphaRule for CostAware {
     fn alpha(&self, pilot: &PilotSamples, light: usize, clamp: [f64; 2]) -> Option<f64> {
-        let costs = match self.ratio {
-            Some(ratio) => SampleCosts {
-                bsdf: ratio,
-                light: 1.0,
-            },
-            // Unmeasured (not preprocessed, or no shading point saw the light): equal costs.
-            None => self
-                .costs
-                .get(light)
-                .copied()
-                .flatten()
-                .unwrap_or(SampleCosts::EQUAL),
-        };
+        let costs = SampleCosts::of_light(self.ratio, &self.costs, light);
         let objective = Objective::Cost {
             stratified: self.stratified,
             bsdf: costs.bsdf,

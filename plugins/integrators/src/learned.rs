@@ -196,22 +196,6 @@ impl LearnedAlpha {
         }
     }
 
-    /// Light `light`'s sample costs: given, measured, or equal where neither.
-    fn costs(&self, light: usize) -> SampleCosts {
-        match self.cost_ratio {
-            Some(ratio) => SampleCosts {
-                bsdf: ratio,
-                light: 1.0,
-            },
-            None => self
-                .costs
-                .get(light)
-                .copied()
-                .flatten()
-                .unwrap_or(SampleCosts::EQUAL),
-        }
-    }
-
     /// α of each pixel of the window (row order) and light, from the statistics of the passes
     /// so far (`values`, row order).
     fn alphas(&self, scene: &Scene) -> Vec<f32> {
@@ -222,7 +206,9 @@ impl LearnedAlpha {
         let r = (self.radius as f64 * width.max(height) as f64 / REFERENCE_SIZE).round() as i64;
         let (pooled, clamp, values, surfaces) =
             (self.pooled, self.clamp, &self.values, &self.surfaces);
-        let costs: Vec<SampleCosts> = (0..lights).map(|light| self.costs(light)).collect();
+        let costs: Vec<SampleCosts> = (0..lights)
+            .map(|light| SampleCosts::of_light(self.cost_ratio, &self.costs, light))
+            .collect();
         let mut alphas = vec![f32::NAN; (window.width * window.height) as usize * lights];
         alphas
             .par_chunks_mut((window.width as usize * lights).max(1))

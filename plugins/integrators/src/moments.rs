@@ -308,8 +308,7 @@ impl<'a> PilotSamples<'a> {
         clamp: [f64; 2],
         out: &mut [f64; K],
     ) -> bool {
-        let step = (clamp[1] - clamp[0]) / (K.max(2) - 1) as f64;
-        let nodes: [f64; K] = std::array::from_fn(|k| clamp[0] + step * k as f64);
+        let nodes = nodes_of::<K>(clamp);
         if objective != Objective::Mixture {
             if !self.informative() {
                 return false;
@@ -353,8 +352,7 @@ impl<'a> PilotSamples<'a> {
         clamp: [f64; 2],
         out: &mut [f64; K],
     ) -> bool {
-        let step = (clamp[1] - clamp[0]) / (K.max(2) - 1) as f64;
-        let nodes: [f64; K] = std::array::from_fn(|k| clamp[0] + step * k as f64);
+        let nodes = nodes_of::<K>(clamp);
         let variances: [f64; K] = if stratified {
             if !self.informative() {
                 return false;
@@ -450,6 +448,13 @@ impl<'a> PilotSamples<'a> {
         }
         Some(minimise_on_grid(clamp, |a| self.objective(objective, a)))
     }
+}
+
+/// `K` evenly spaced α of `clamp`, its ends included: where learning allocations keep their
+/// objective.
+fn nodes_of<const K: usize>(clamp: [f64; 2]) -> [f64; K] {
+    let step = (clamp[1] - clamp[0]) / (K.max(2) - 1) as f64;
+    std::array::from_fn(|k| clamp[0] + step * k as f64)
 }
 
 /// The minimum over `clamp` of `f`: the best of 17 evenly spaced points, then golden section

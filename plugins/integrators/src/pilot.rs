@@ -230,6 +230,22 @@ impl SampleCosts {
         bsdf: 1.0,
         light: 1.0,
     };
+
+    /// Light `light`'s costs: c_B / c_L = `ratio` where given, else as `measured` (per light,
+    /// [`measure_costs`]), else equal (not measured, or no shading point saw the light).
+    pub fn of_light(ratio: Option<f64>, measured: &[Option<SampleCosts>], light: usize) -> Self {
+        match ratio {
+            Some(ratio) => SampleCosts {
+                bsdf: ratio,
+                light: 1.0,
+            },
+            None => measured
+                .get(light)
+                .copied()
+                .flatten()
+                .unwrap_or(SampleCosts::EQUAL),
+        }
+    }
 }
 
 /// Shading points per side of the grid `cost_alpha` measures its costs on.
