@@ -13,7 +13,7 @@ use lumis::passes::{self, Settings, Stop, Stopping};
 use lumis::progressive::{Control, Ending, RenderState, Scope};
 use lumis::render::Shard;
 use lumis::render_files::{self, error_text};
-use lumis::shards::ShardFile;
+use lumis::shards::{BUDGETS_KEY, ShardFile};
 use lumis::{image_io, limits};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -108,8 +108,8 @@ pub struct RenderArgs {
     /// for all) [default], or `per-pixel`: in proportion to the square root of each pixel's
     /// variance per sample (relative for --metric relmse) measured on the passes before, with a
     /// floor and a dilation; still unbiased (docs/integrators.md, "Per-pixel budgets"). Needs
-    /// passes of even sizes; not with --shard or --resume (such a render cannot be resumed);
-    /// --replay reads it from the EXR.
+    /// passes of even sizes; an interrupt drops the pass cut short (so that --resume continues
+    /// into the uninterrupted image); --replay reads it from the EXR.
     #[arg(long, value_name = "B")]
     budgets: Option<String>,
 }
@@ -150,8 +150,7 @@ fn settings(args: &RenderArgs, spp: u32) -> Result<Option<Settings>> {
 }
 
 /// The budgets asked for, checked against the render: per-pixel budgets read the half-images of
-/// the passes before (so every pass has an even number of samples), and decide each pass from
-/// the whole image's sums (so not per shard, nor from the sums of a pass cut short).
+/// the passes before (so every pass has an even number of samples).
 fn budgets(args: &RenderArgs, settings: Option<&Settings>) -> Result<Budgets> {
     let asked = args
         .budgets
@@ -186,18 +185,8 @@ fn budgets(args: &RenderArgs, settings: Option<&Settings>) -> Result<Budgets> {
             "--budgets {name} needs passes of even sizes (it reads the half-images of the passes before): give --passes K with an even --spp of at least 2K"
         );
     }
-    if args.shard.is_some() || args.resume.is_some() {
-        let given = match (asked, &args.replay) {
-            (None, Some(exr)) => format!(" (recorded in `{}`)", exr.display()),
-            _ => String::new(),
-        };
-        bail!("--budgets {name}{given} cannot be combined with --shard or --resume");
-    }
     Ok(budgets)
 }
-
-/// The EXR metadata key of a render's budgets, written when they are not uniform.
-const BUDGETS_KEY: &str = "budgets";
 
 /// The budgets the EXR at `path` was rendered with (uniform if it records none).
 fn replayed_budgets(path: &Path) -> Result<Budgets> {
@@ -281,12 +270,13 @@ fn settings_text(settings: &Settings) -> String {
 }
 
 /// A render's saved state, checked to be this render's: the same scene file (unchanged), the
-/// same overrides and the same settings; a whole render (not one shard of it).
+/// same overrides, settings and budgets; a whole render (not one shard of it).
 fn resumed_state(
     path: &Path,
     scene: &Path,
     overrides: &[String],
     settings: &Settings,
+    budgets: Budgets,
 ) -> Result<RenderState> {
     let file = ShardFile::read(path)?;
     let scene = std::path::absolute(scene)
@@ -322,9 +312,19 @@ fn resumed_state(
             settings_text(settings)
         );
     }
-    if file.budgets != Budgets::Uniform {
+    if file.budgets != budgets {
         bail!(
-            "`{}` is a render with --budgets {}, which cannot be resumed: each pass's per-pixel samples are decided from the whole image's sums before it, and the pass cut short has changed them. Render it again",
+            "`{}` is a render with --budgets {}; this one asks for --budgets {}",
+            path.display(),
+            file.budgets.name(),
+            budgets.name()
+        );
+    }
+    // An interrupt drops the pass cut short of a render with per-pixel budgets (each pass is
+    // decided from the whole image's sums before it), so its state has none.
+    if file.budgets != Budgets::Uniform && file.state.current.is_some() {
+        bail!(
+            "`{}` holds part of a pass of a render with --budgets {}, whose passes are decided from the whole image's sums before them: it cannot be resumed. Render it again",
             path.display(),
             file.budgets.name()
         );
@@ -388,9 +388,14 @@ pub fn render(args: RenderArgs, threads: usize) -> Result<()> {
     }
     match (shard, settings) {
         (Some(shard), None) => render_shard(&args, overrides, loaded, shard, threads),
-        (Some(shard), Some(settings)) => {
-            render_shard_pass(&args, overrides, loaded, &settings, shard, threads)
-        }
+        (Some(shard), Some(settings)) => render_shard_pass(
+            &args,
+            overrides,
+            loaded,
+            (&settings, budgets),
+            shard,
+            threads,
+        ),
         (None, Some(settings)) => {
             let scope = Scope::whole(threads).with_budgets(budgets);
             render_in_passes(&args, &overrides, loaded, &settings, scope, load_time)
@@ -685,7 +690,7 @@ fn render_in_passes(
     let exposure = args.exposure.unwrap_or(loaded.scene.exposure);
     let mut state = match &args.resume {
         Some(path) => {
-            let state = resumed_state(path, &args.scene, overrides, settings)?;
+            let state = resumed_state(path, &args.scene, overrides, settings, scope.budgets)?;
             let fresh = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
             if (
                 state.sums.window,
@@ -802,22 +807,16 @@ fn render_in_passes(
             state: state.clone(),
         }
         .write(&saved)?;
-        let next = if scope.budgets == Budgets::Uniform {
-            format!("continue it with `{}`", resume_command(&saved))
-        } else {
-            format!(
-                "a render with --budgets {} cannot be resumed (its state is in {}): render it again",
-                scope.budgets.name(),
-                saved.display()
-            )
-        };
+        let next = format!("continue it with `{}`", resume_command(&saved));
         eprintln!(
             "interrupted: wrote a partial image ({} of its passes{}) to {} after {}; {next}",
             state.history.passes.len(),
-            if state.current.is_some() {
-                " and part of the next"
-            } else {
-                ""
+            match (state.current.is_some(), scope.budgets) {
+                (true, _) => " and part of the next",
+                (false, Budgets::Uniform) => "",
+                (false, _) => {
+                    "; per-pixel budgets drop a pass cut short, as they decide each pass from the whole image"
+                }
             },
             exr_path.display(),
             interrupt::signal_name(),
@@ -970,7 +969,7 @@ fn render_shard_pass(
     args: &RenderArgs,
     overrides: Vec<String>,
     mut loaded: lumis::scene::load::LoadedScene,
-    settings: &Settings,
+    (settings, budgets): (&Settings, Budgets),
     shard: Shard,
     threads: usize,
 ) -> Result<()> {
@@ -982,7 +981,7 @@ fn render_shard_pass(
     let path = shard_path(args, &loaded, shard)?;
     let mut state = match &args.resume {
         Some(resume) => {
-            let state = resumed_state(resume, &args.scene, &overrides, settings)?;
+            let state = resumed_state(resume, &args.scene, &overrides, settings, budgets)?;
             if state.history.complete() {
                 bail!(
                     "`{}` is a complete render: `lumis merge` wrote its image; nothing to render",
@@ -1004,7 +1003,7 @@ fn render_shard_pass(
             threads,
             shard,
             max_passes: Some(1),
-            budgets: Budgets::Uniform,
+            budgets,
         },
         &cancel,
         &|_| {},
@@ -1030,7 +1029,7 @@ fn render_shard_pass(
         shard,
         stats: outcome.stats,
         settings: settings.clone(),
-        budgets: Budgets::Uniform,
+        budgets,
         state: state.clone(),
     }
     .write(&path)?;

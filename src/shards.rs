@@ -428,6 +428,10 @@ fn passes_text(history: &History, current: &Option<(PlannedPass, Option<Stop>)>)
     )
 }
 
+/// The EXR metadata key of a render's budgets, written when they are not uniform (`--replay`
+/// reads it).
+pub const BUDGETS_KEY: &str = "budgets";
+
 /// Merges the shards at `paths` (all the shards of one render, after the same pass, in any
 /// order) and writes the render's EXR and previews to `output` (default: the scene's output);
 /// when the render has more passes, also its merged state, to `state` (default:
@@ -450,12 +454,14 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>, state: Option<&Path>) -> 
             &shard.overrides,
             shard.shard.count,
             &shard.settings,
+            shard.budgets,
         ) != (
             &first.scene_path,
             first.scene_hash,
             &first.overrides,
             count,
             &first.settings,
+            first.budgets,
         ) {
             bail!(
                 "`{}` is shard {} of a render of `{}` with overrides [{}]; `{}` is shard {} of `{}` with [{}]: not the same render (or the scene file or the render's settings changed between them)",
@@ -563,7 +569,7 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>, state: Option<&Path>) -> 
         tiles_total: shards.iter().map(|s| s.stats.tiles_total).sum(),
     };
     let exr = output.map_or_else(|| scene.output.clone(), Path::to_path_buf);
-    let metadata = if *settings == Settings::samples(scene.spp) {
+    let mut metadata = if *settings == Settings::samples(scene.spp) {
         lumis_core::render_files::metadata(
             &first.scene_name,
             &loaded.description.integrator,
@@ -581,6 +587,9 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>, state: Option<&Path>) -> 
             &merged.history,
         )
     };
+    if first.budgets != Budgets::Uniform {
+        metadata.push((BUDGETS_KEY.to_string(), first.budgets.name().to_string()));
+    }
     let written = lumis_core::render_files::write(&film, &exr, first.exposure, &metadata)?;
     let state = if merged.history.complete() {
         None

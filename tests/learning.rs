@@ -8,7 +8,7 @@ use crate::integrators::{InPasses, same_mean_rendered, same_mean_scene};
 use lumis::budgets::Budgets;
 use lumis::integrators::{alpha, aovs, balance, cost_alpha, exact_alpha, pooled_alpha};
 use lumis::passes::{Settings, Stopping};
-use lumis::progressive::{Control, RenderState, Scope};
+use lumis::progressive::{Control, Ending, RenderState, Scope};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
@@ -231,10 +231,11 @@ fn failed(output: std::process::Output) -> String {
 }
 
 /// A render with per-pixel budgets records them: `--replay` renders the same image without
-/// being told them again, and refuses other budgets; its saved state refuses to resume (a pass
-/// cut short has changed the sums its budgets were decided from).
+/// being told them again, and refuses other budgets. Its shards, each pass rendered from the
+/// merged state, merge into the one-process image bit for bit (the merged EXR records the
+/// budgets too); a state that holds part of a pass, or other budgets, refuses to resume.
 #[test]
-fn per_pixel_budgets_replay_from_the_exr_and_refuse_to_resume() {
+fn per_pixel_budgets_replay_resume_and_shard_into_one_image() {
     let (dir, path) = common::scene_file("scene.ron", common::SMALL_SCENE);
     let (d, scene) = (dir.path(), path.to_str().unwrap());
     let passes = ["--passes", "3", "--spp", "6"];
@@ -243,9 +244,8 @@ fn per_pixel_budgets_replay_from_the_exr_and_refuse_to_resume() {
         all.extend(extra);
         common::lumis(d, &all)
     };
-    succeeded(render(
-        &[&passes[..], &["--budgets", "per-pixel", "-o", "b.exr"]].concat(),
-    ));
+    let per_pixel = [&passes[..], &["--budgets", "per-pixel"]].concat();
+    succeeded(render(&[&per_pixel[..], &["-o", "b.exr"]].concat()));
     let metadata = lumis::image_io::read_exr_metadata(&d.join("b.exr")).unwrap();
     assert!(
         metadata.contains(&("budgets".into(), "per-pixel".into())),
@@ -270,25 +270,108 @@ fn per_pixel_budgets_replay_from_the_exr_and_refuse_to_resume() {
         "{e}"
     );
 
-    // A saved state of the render, as an interrupt of it writes one.
-    succeeded(render(
-        &[&passes[..], &["--shard", "0/1", "-o", "s.lshard"]].concat(),
-    ));
-    let mut state = lumis::shards::ShardFile::read(&d.join("s.lshard")).unwrap();
-    assert_eq!(state.budgets, Budgets::Uniform);
-    state.budgets = Budgets::PerPixel;
-    state.write(&d.join("p.lshard")).unwrap();
-    assert_eq!(
-        lumis::shards::ShardFile::read(&d.join("p.lshard"))
-            .unwrap()
-            .budgets,
-        Budgets::PerPixel
+    // Two shards, pass by pass from the merged state.
+    for round in 0..3 {
+        let mut merge = vec!["merge", "--quiet", "-o", "m.exr", "--state", "m.lshard"];
+        for part in ["0/2", "1/2"] {
+            let file = format!("part-{}.lshard", &part[..1]);
+            let mut extra = [&per_pixel[..], &["--shard", part, "-o", &file]].concat();
+            if round > 0 {
+                extra.extend(["--resume", "m.lshard"]);
+            }
+            succeeded(render(&extra));
+            let shard = lumis::shards::ShardFile::read(&d.join(&file)).unwrap();
+            assert_eq!(shard.budgets, Budgets::PerPixel);
+        }
+        merge.extend(["part-0.lshard", "part-1.lshard"]);
+        succeeded(common::lumis(d, &merge));
+    }
+    assert!(
+        channels("m.exr") == channels("b.exr"),
+        "the shards' image differs"
     );
+    let merged = lumis::image_io::read_exr_metadata(&d.join("m.exr")).unwrap();
+    assert!(merged.contains(&("budgets".into(), "per-pixel".into())));
+
+    // States that cannot continue this render: other budgets, and part of a pass.
+    succeeded(render(
+        &[&per_pixel[..], &["--shard", "0/1", "-o", "s.lshard"]].concat(),
+    ));
     let e = failed(render(
-        &[&passes[..], &["--resume", "p.lshard", "-o", "x.exr"]].concat(),
+        &[&passes[..], &["--resume", "s.lshard", "-o", "x.exr"]].concat(),
     ));
     assert!(
-        e.contains("--budgets per-pixel, which cannot be resumed"),
+        e.contains("is a render with --budgets per-pixel; this one asks for --budgets uniform"),
         "{e}"
     );
+    let mut state = lumis::shards::ShardFile::read(&d.join("s.lshard")).unwrap();
+    let first = state.state.history.passes[0].pass;
+    state.state.current = Some((first, None));
+    state.write(&d.join("p.lshard")).unwrap();
+    let e = failed(render(
+        &[&per_pixel[..], &["--resume", "p.lshard", "-o", "x.exr"]].concat(),
+    ));
+    assert!(e.contains("holds part of a pass"), "{e}");
+}
+
+/// An interrupt of a render with per-pixel budgets drops the pass cut short: the state is the
+/// one after the last finished pass (no pass in progress, every pixel's sums as they were), and
+/// it continues into the image the uninterrupted render gives, bit for bit.
+#[test]
+fn an_interrupted_render_with_per_pixel_budgets_resumes_into_the_same_image() {
+    let mut loaded = load(balance::NAME, false);
+    let whole_settings = settings();
+    let scope = Scope::whole(2).with_budgets(Budgets::PerPixel);
+    let run = |loaded: &mut lumis::scene::load::LoadedScene,
+               state: &mut RenderState,
+               cancel_at: Option<u64>| {
+        let tiles = std::sync::atomic::AtomicU64::new(0);
+        let cancel = AtomicBool::new(false);
+        lumis::progressive::run(
+            &loaded.scene,
+            loaded.integrator.as_mut(),
+            &whole_settings,
+            state,
+            scope,
+            &cancel,
+            &|_| {
+                let done = tiles.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                if Some(done) == cancel_at {
+                    cancel.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+            },
+            &mut |_| Control::Continue,
+        )
+        .expect("render")
+        .ending
+    };
+    let fresh = |loaded: &lumis::scene::load::LoadedScene| {
+        RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &whole_settings)
+    };
+    let mut whole = fresh(&loaded);
+    assert_eq!(run(&mut loaded, &mut whole, None), Ending::Complete);
+    let tiles_per_pass = lumis::film_sums::tiles(loaded.scene.window).count() as u64;
+    let mut two = fresh(&loaded);
+    let mut scope_two = scope;
+    scope_two.max_passes = Some(2);
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        &whole_settings,
+        &mut two,
+        scope_two,
+        &AtomicBool::new(false),
+        &|_| {},
+        &mut |_| Control::Continue,
+    )
+    .expect("render");
+    // The cancel comes in the middle of the third pass.
+    let mut cut = fresh(&loaded);
+    let at = 2 * tiles_per_pass + tiles_per_pass.div_ceil(2);
+    assert_eq!(run(&mut loaded, &mut cut, Some(at)), Ending::Interrupted);
+    assert_eq!(cut.history.passes.len(), 2);
+    assert!(cut.current.is_none());
+    assert!(cut.sums == two.sums, "the pass cut short left sums behind");
+    assert_eq!(run(&mut loaded, &mut cut, None), Ending::Complete);
+    assert!(cut.sums == whole.sums, "the resumed render differs");
 }

@@ -57,7 +57,9 @@ pub enum Control {
 pub enum Ending {
     /// The pass planned as the last is done.
     Complete,
-    /// `cancel` was raised: the pass in progress is in the state's `current`.
+    /// `cancel` was raised: the pass in progress is in the state's `current`, its finished
+    /// pixels in the sums; with per-pixel budgets the pass is dropped instead (the state is the
+    /// one before it, `current` empty).
     Interrupted,
     /// The caller answered [`Control::Stop`].
     Stopped,
@@ -133,6 +135,11 @@ pub fn run(
         tiles_total: 0,
     };
     let mut rendered = 0;
+    // Per-pixel budgets decide each pass from the whole image's sums: a pass cut short would
+    // leave sums that no decision was made from (the pixels done would differ from those an
+    // uninterrupted render gives them). So the sums from before each pass are kept to return to:
+    // twice the sums' memory, with these budgets only.
+    let mut before_pass: Option<FilmSums> = None;
     let ending = loop {
         state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
         if cancel.load(Ordering::Relaxed) {
@@ -150,6 +157,12 @@ pub fn run(
         };
         if state.history.passes.is_empty() {
             state.history.mass = pass.planned as f64;
+        }
+        if scope.budgets != Budgets::Uniform {
+            match &mut before_pass {
+                Some(sums) => sums.clone_from(&state.sums),
+                None => before_pass = Some(state.sums.clone()),
+            }
         }
         let budget = budgets::budget(
             scope.budgets,
@@ -186,6 +199,13 @@ pub fn run(
         stats.tiles_total = pass_stats.tiles_total;
         rendered += 1;
         if pass_stats.pixels_done < pass_stats.pixels_total {
+            if let Some(sums) = before_pass.take() {
+                state.sums = sums;
+                stats.pixels_done = state.sums.pixels_with_samples();
+                stats.tiles_done = 0;
+                state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
+                break Ending::Interrupted;
+            }
             state.current = Some((pass, stop));
             state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
             break Ending::Interrupted;
