@@ -461,6 +461,7 @@ fn every_weighting_gives_the_same_mean_with_indirect_light() {
         &reference,
         &configurations,
         0.02,
+        crate::integrators::RUNS,
     );
 }
 
@@ -947,7 +948,7 @@ fn sampling_weights_choose_lights_with_the_same_mean() {
         file
     };
     let first = test_seed() * 1_000_000 + 700_000;
-    let runs = 32;
+    let runs = 24;
     let reference = image_means(&uniform, &[], (128, 1), first..first + runs);
     let alpha = sidak(FAMILY_FALSE_ALARM, 1);
     let tested = image_means(&weighted, &[], (128, 1), first + 1000..first + 1000 + runs);
