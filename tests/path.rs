@@ -934,7 +934,8 @@ fn weighted_lights_scene(weights: [f32; 3]) -> String {
 }
 
 /// `lights: one` with emitters' `sampling_weight`s (Mitsuba's) gives the mean of uniform
-/// choice (image means over renders, a 2 % bias detected with probability 0.9); a weight of
+/// choice (image means over 24 renders each, a 2 % bias detected with probability 0.9: 1.32–1.71 %
+/// at seeds 0–2, 1.40 % with 32 renders at seed 0); a weight of
 /// 0 (so also a total weight of 0) or a negative one is an error naming the scene and the
 /// emitter.
 #[test]
