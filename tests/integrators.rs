@@ -42,18 +42,43 @@ fn mirror_scene() -> (tempfile::TempDir, PathBuf) {
     scene_file("mirror.ron", &text)
 }
 
-/// Independent renders per configuration in the same-mean test: the per-pixel variance of a
-/// render is measured across them (each render's pixel is the mean of its camera samples).
-const RUNS: u64 = 16;
-/// Independent renders of a configuration whose pixels are coupled within a render (a pilot's
-/// statistics pooled over blocks of pixels): its comparisons take their variance from the
-/// renders' weighted sums, with RUNS_COUPLED − 1 degrees of freedom (docs/testing.md).
-const RUNS_COUPLED: u64 = 64;
-/// Independent renders of `balance` the tested configurations are compared with.
-const REFERENCE_RUNS: u64 = 32;
-/// Renders of each configuration (and of `balance`) from which the pixel weights are taken,
-/// independent of the compared ones.
-const PILOT_RUNS: u64 = 16;
+/// How many renders the same-mean test makes of each kind. Each comparison's power is required
+/// (and printed), so a scene whose noise leaves it far above what is required may take fewer
+/// renders ([`FEWER_RUNS`]); the false-alarm rate is the same at any count, since the limits are
+/// Student's t quantiles at the measured degrees of freedom.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Runs {
+    /// Independent renders per configuration: the per-pixel variance of a render is measured
+    /// across them (each render's pixel is the mean of its camera samples).
+    pub independent: u64,
+    /// Independent renders of a configuration whose pixels are coupled within a render (a
+    /// pilot's statistics pooled over blocks of pixels): its comparisons take their variance
+    /// from the renders' weighted sums, with `coupled` − 1 degrees of freedom (docs/testing.md).
+    pub coupled: u64,
+    /// Independent renders of `balance` the tested configurations are compared with.
+    pub reference: u64,
+    /// Renders of each configuration (and of `balance`) from which the pixel weights are taken,
+    /// independent of the compared ones.
+    pub pilot: u64,
+}
+
+/// The renders of a scene whose noise needs them all for the required power.
+pub(crate) const RUNS: Runs = Runs {
+    independent: 16,
+    coupled: 64,
+    reference: 32,
+    pilot: 16,
+};
+
+/// Half the renders of [`RUNS`] for the independent configurations, the reference and the
+/// pilots, on scenes where [`RUNS`] detects biases of a few tenths of a percent or less:
+/// `variance_aware`'s 64 (coupled, its power printed, not required) are kept.
+pub(crate) const FEWER_RUNS: Runs = Runs {
+    independent: 8,
+    reference: 16,
+    pilot: 8,
+    ..RUNS
+};
 /// Side of the square pixel blocks tested on their own (for biases confined to one object).
 const BLOCK: usize = 6;
 /// Power stated (and required) by the same-mean test: the relative bias it detects with
@@ -260,11 +285,16 @@ impl Comparison {
 /// Pixel weights w = μ / Var(d) for the comparison of `tested` with the reference, from pilot
 /// runs of both (independent of the compared runs, so the weights need not be exact): with
 /// relative variances r = σ² / μ² of one render, Var(d) = μ² (r_tested / runs + r_reference /
-/// REFERENCE_RUNS). Each r is floored at the lower quartile of its image's, so that a pixel whose
+/// reference_runs). Each r is floored at the lower quartile of its image's, so that a pixel whose
 /// pilot runs happened to agree does not take all the weight. A pixel the tested method's pilot
 /// never lit while the reference's did is a rare event for it (a small light reached by BSDF
 /// sampling alone, say): its mean over the runs is far from normal, and it gets no weight.
-fn weights(reference: &PixelMeans, tested: &PixelMeans, tested_runs: u64) -> Vec<f64> {
+fn weights(
+    reference: &PixelMeans,
+    tested: &PixelMeans,
+    tested_runs: u64,
+    reference_runs: u64,
+) -> Vec<f64> {
     let relative = |p: &PixelMeans| -> (Vec<f64>, f64) {
         let r: Vec<f64> = p
             .mean
@@ -292,7 +322,7 @@ fn weights(reference: &PixelMeans, tested: &PixelMeans, tested_runs: u64) -> Vec
                 return 0.0;
             }
             let var = r_tested[p].max(floor_tested) / tested_runs as f64
-                + r_ref[p].max(floor_ref) / REFERENCE_RUNS as f64;
+                + r_ref[p].max(floor_ref) / reference_runs as f64;
             1.0 / (mu * var)
         })
         .collect()
@@ -365,7 +395,7 @@ fn same_mean_configurations(env_map: bool) -> Vec<(String, Vec<String>)> {
 /// [`BLOCK`]² pixels, against Student's t limits at the family's false-alarm rate (half for the
 /// whole-image tests, half for the blocks, Šidák within each). The test also requires power: the
 /// whole-image bias it detects with probability 90 % must be at most `detectable` (relative).
-fn same_mean_on_scene(index: usize, spp: u32, detectable: f64) {
+fn same_mean_on_scene(index: usize, spp: u32, detectable: f64, runs: Runs) {
     let (name, _dir, path) = same_mean_scene(index);
     let balance_type = vec![format!("integrator.type={}", balance::NAME)];
     let configurations = same_mean_configurations(index == 1);
@@ -376,6 +406,7 @@ fn same_mean_on_scene(index: usize, spp: u32, detectable: f64) {
         &balance_type,
         &configurations,
         detectable,
+        runs,
     );
 }
 
@@ -390,18 +421,19 @@ pub(crate) fn same_mean(
     balance_type: &[String],
     configurations: &[(String, Vec<String>)],
     detectable: f64,
+    runs: Runs,
 ) {
     let plain: Vec<_> = configurations
         .iter()
         .map(|(n, o)| (n.clone(), o.clone(), None))
         .collect();
-    same_mean_rendered(name, path, spp, balance_type, &plain, detectable);
+    same_mean_rendered(name, path, spp, balance_type, &plain, detectable, runs);
 }
 
 /// [`same_mean`] of configurations rendered plainly (`None`) or in passes, against plain
 /// renders of the reference. A render in passes whose budgets are per pixel, or whose α is
 /// pooled over pixels, couples its pixels: it is compared as the coupled configurations are
-/// (run sums, [`RUNS_COUPLED`] runs), its power required as every other's.
+/// (run sums, `counts.coupled` runs), its power required as every other's.
 pub(crate) fn same_mean_rendered(
     name: &str,
     path: &Path,
@@ -409,6 +441,7 @@ pub(crate) fn same_mean_rendered(
     balance_type: &[String],
     configurations: &[(String, Vec<String>, Option<InPasses>)],
     detectable: f64,
+    counts: Runs,
 ) {
     let path = path.to_path_buf();
     let base = vec![
@@ -421,11 +454,11 @@ pub(crate) fn same_mean_rendered(
     // Seeds: the suite's seed, then disjoint ranges per set of runs.
     let first = test_seed() * 1_000_000;
     let with = |extra: &[String]| [base.clone(), extra.to_vec()].concat();
-    let reference_pilot = pixel_means(&path, &with(balance_type), first..first + PILOT_RUNS);
+    let reference_pilot = pixel_means(&path, &with(balance_type), first..first + counts.pilot);
     let reference = pixel_means(
         &path,
         &with(balance_type),
-        first + 100..first + 100 + REFERENCE_RUNS,
+        first + 100..first + 100 + counts.reference,
     );
     let (width, height): (usize, usize) = (24, 18);
     let blocks: Vec<Vec<usize>> = (0..height.div_ceil(BLOCK))
@@ -452,11 +485,15 @@ pub(crate) fn same_mean_rendered(
         let pooled = extra.iter().any(|o| o.contains("pooled_alpha"));
         let budgets = in_passes.is_some_and(|p| p.budgets != Budgets::Uniform);
         let coupled = integrator == variance_aware::NAME || budgets || pooled;
-        let runs = if coupled { RUNS_COUPLED } else { RUNS };
+        let runs = if coupled {
+            counts.coupled
+        } else {
+            counts.independent
+        };
         let seeds = first + 1000 * (i as u64 + 1);
         let means = |seeds| pixel_means_rendered(&path, &with(extra), seeds, *in_passes);
-        let pilot = means(seeds..seeds + PILOT_RUNS);
-        let weights = weights(&reference_pilot, &pilot, runs);
+        let pilot = means(seeds..seeds + counts.pilot);
+        let weights = weights(&reference_pilot, &pilot, runs, counts.reference);
         let seeds = seeds + 100;
         let tested = means(seeds..seeds + runs);
         // Pixels constant over balance's 48 runs: directly seen emission (the environment, an
@@ -557,27 +594,27 @@ const DETECTABLE: f64 = 0.02;
 
 #[test]
 fn same_mean_diffuse_under_area_lights() {
-    same_mean_on_scene(0, 4, DETECTABLE);
+    same_mean_on_scene(0, 4, DETECTABLE, FEWER_RUNS);
 }
 
 #[test]
 fn same_mean_glossy_under_an_env_map() {
-    same_mean_on_scene(1, 12, DETECTABLE);
+    same_mean_on_scene(1, 12, DETECTABLE, RUNS);
 }
 
 #[test]
 fn same_mean_mirror_under_a_bilinear_env_map() {
-    same_mean_on_scene(2, 12, DETECTABLE);
+    same_mean_on_scene(2, 12, DETECTABLE, RUNS);
 }
 
 #[test]
 fn same_mean_under_point_directional_and_area_lights() {
-    same_mean_on_scene(3, 4, DETECTABLE);
+    same_mean_on_scene(3, 4, DETECTABLE, FEWER_RUNS);
 }
 
 #[test]
 fn same_mean_on_the_veach_layout() {
-    same_mean_on_scene(4, 4, DETECTABLE);
+    same_mean_on_scene(4, 4, DETECTABLE, FEWER_RUNS);
 }
 
 /// A grey diffuse floor seen at one point (on the light's axis) by a camera of 0.01° field:

@@ -461,6 +461,7 @@ fn every_weighting_gives_the_same_mean_with_indirect_light() {
         &reference,
         &configurations,
         0.02,
+        crate::integrators::RUNS,
     );
 }
 
@@ -933,7 +934,8 @@ fn weighted_lights_scene(weights: [f32; 3]) -> String {
 }
 
 /// `lights: one` with emitters' `sampling_weight`s (Mitsuba's) gives the mean of uniform
-/// choice (image means over renders, a 2 % bias detected with probability 0.9); a weight of
+/// choice (image means over 24 renders each, a 2 % bias detected with probability 0.9: 1.32–1.71 %
+/// at seeds 0–2, 1.40 % with 32 renders at seed 0); a weight of
 /// 0 (so also a total weight of 0) or a negative one is an error naming the scene and the
 /// emitter.
 #[test]
@@ -947,7 +949,7 @@ fn sampling_weights_choose_lights_with_the_same_mean() {
         file
     };
     let first = test_seed() * 1_000_000 + 700_000;
-    let runs = 32;
+    let runs = 24;
     let reference = image_means(&uniform, &[], (128, 1), first..first + runs);
     let alpha = sidak(FAMILY_FALSE_ALARM, 1);
     let tested = image_means(&weighted, &[], (128, 1), first + 1000..first + 1000 + runs);
