@@ -2,7 +2,8 @@
 //!
 //! Core owns the camera samples: a pass gives each pixel camera samples from its count so far up
 //! to the pass's end ([`CameraSample::new`] draws each one's stream and ray; their primary rays
-//! are traced sixteen at a time, [`CameraSample::trace_together`]), adds each colour the
+//! are traced sixteen at a time across consecutive pixels of a tile,
+//! [`CameraSample::trace_together`]), adds each colour the
 //! integrator returns times the pass's weight to the pixel's sums (f64), and lets the integrator
 //! add its statistics. The sums ([`FilmSums`]) are the primary data; only then are they resolved
 //! into colours and AOV values. Sums over disjoint sets of camera samples add up, so tiles
@@ -106,8 +107,8 @@ pub fn render(
 }
 
 /// As [`render`], but stops soon after `cancel` becomes true: it is checked before every
-/// packet of camera samples (the [`PACKET_SIZE`] samples of a pixel traced and shaded
-/// together), so a render stops within one packet per thread. A pixel is *finished*
+/// packet of camera samples (the [`PACKET_SIZE`] samples of consecutive pixels of a tile traced
+/// and shaded together, [`render_tile`]), so a render stops within one packet per thread. A pixel is *finished*
 /// when all its `spp` camera samples are done; the film holds every finished pixel, the pixels
 /// that were not finished stay black (colour and AOVs zero), and the statistics count both.
 ///
