@@ -1362,12 +1362,11 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
                             .collect();
                         let mut sums_together = vec![0.0; stride];
                         let mut radiance = vec![lumis::math::Rgb::ZERO; together.len()];
-                        built.shade_together(
-                            scene,
-                            &mut together,
+                        let mut sums = lumis::integrator::PacketSums::one_pixel(
                             &mut sums_together,
-                            &mut radiance,
+                            together.len(),
                         );
+                        built.shade_together(scene, &mut together, &mut sums, &mut radiance);
                         let bits = |v: &[lumis::math::Rgb]| -> Vec<[u32; 3]> {
                             v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
                         };
@@ -1401,4 +1400,122 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
         "{mixed_materials} packets with several materials"
     );
     assert!(with_misses > 100, "{with_misses} packets with misses");
+}
+
+/// The render loop's packets span pixels (a pixel's camera samples, then the next pixel's, up
+/// to `PACKET_SIZE`), yet each pixel gets what shading its own samples one by one in index order
+/// gives, bit for bit: its colour, halves, weight, count and the integrator's sums (the AOVs'
+/// statistics, added one by one by the MIS family; without AOVs its packets are drawn
+/// together). Two passes with per-pixel budgets: pixels of 0 to 3 samples in the first pass and
+/// 0 to 4 more in the second, on a film of several tiles.
+#[test]
+fn packets_across_pixels_give_each_pixel_its_own_sums() {
+    use lumis::integrator::CameraSample;
+    use lumis::passes::{Budget, PixelPasses, PlannedPass, give, sample_weight};
+    let path = repo_path("scenes/cornell.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let film = ["film.width=20", "film.height=10"];
+    let loaded = common::load(&path, &film).unwrap();
+    let scene = &loaded.scene;
+    let pool = lumis::render::thread_pool(2).unwrap();
+    // Pixel p's samples after pass k, and the samples planned from pass k on (at least one).
+    let ends = |p: usize| [(p % 4) as u32, (p % 4 + p % 5) as u32];
+    let planned = |p: usize, k: usize| [ends(p)[1] + 1, (p % 5).max(1) as u32][k] as u64;
+    let mass = 8.0;
+    let luminance = |c: lumis::math::Rgb| {
+        0.212_671 * c.x as f64 + 0.715_160 * c.y as f64 + 0.072_169 * c.z as f64
+    };
+    let mut compared = 0;
+    for (kind, aovs) in [("balance", true), ("balance", false), ("alpha", true)] {
+        let aov_list = if aovs {
+            format!("integrator.aovs={:?}", aovs::NAMES)
+        } else {
+            "integrator.aovs=[]".to_string()
+        };
+        let overrides: Vec<String> = film
+            .iter()
+            .map(|o| o.to_string())
+            .chain([
+                format!("integrator.type={kind}"),
+                "integrator.samples=4".into(),
+                aov_list,
+            ])
+            .collect();
+        let description = lumis::scene::load::parse_description(&path, &text, &overrides).unwrap();
+        let mut integrator =
+            lumis::scene::load::build_integrator(&description.integrator, path.parent().unwrap())
+                .unwrap();
+        integrator.preprocess(scene);
+        let stride = integrator.pixel_sums(scene);
+        assert_eq!(stride > 0, aovs, "{kind}: sums with AOVs only");
+        let mut sums = lumis::render::FilmSums::new(scene, stride, true);
+        let pixels = sums.samples.len();
+        for k in 0..2 {
+            let budget = Budget {
+                mass,
+                pixels: PixelPasses::PerPixel(
+                    (0..pixels)
+                        .map(|p| PlannedPass {
+                            end: ends(p)[k],
+                            planned: planned(p, k),
+                        })
+                        .collect(),
+                ),
+            };
+            let cancel = AtomicBool::new(false);
+            let shard = lumis::render::Shard::WHOLE;
+            let stats = lumis::render::render_pass(
+                scene,
+                integrator.as_ref(),
+                &pool,
+                shard,
+                &mut sums,
+                &budget,
+                &|_| {},
+                &cancel,
+            );
+            assert_eq!(stats.pixels_done, pixels as u64);
+        }
+        for p in 0..pixels {
+            let row = sums.row_index(p) as u32;
+            let pixel = glam::UVec2::new(row % scene.width, row / scene.width);
+            let (mut own, mut color, mut halves) = (vec![0.0; stride], glam::DVec3::ZERO, [0.0; 2]);
+            let (mut given, mut start) = (0.0, 0);
+            for k in 0..2 {
+                let end = ends(p)[k];
+                let u = sample_weight(mass, given, planned(p, k));
+                for index in start..end {
+                    let mut sample = CameraSample::new(scene, pixel, index);
+                    let r = integrator.shade(scene, &mut sample, &mut own) * sample.weight;
+                    color += r.as_dvec3() * u;
+                    halves[(index & 1) as usize] += u * luminance(r);
+                }
+                if end > start {
+                    given = give(given, u, end - start);
+                }
+                start = end;
+            }
+            let name = format!("{kind}, AOVs {aovs}, pixel {pixel}");
+            let bits = |v: &[f64]| -> Vec<u64> { v.iter().map(|x| x.to_bits()).collect() };
+            assert_eq!(sums.samples[p], start, "{name}: samples");
+            assert_eq!(
+                bits(&sums.sums[p * stride..(p + 1) * stride]),
+                bits(&own),
+                "{name}: sums"
+            );
+            assert_eq!(
+                bits(&sums.color[p].to_array()),
+                bits(&color.to_array()),
+                "{name}"
+            );
+            assert_eq!(bits(&sums.halves[p]), bits(&halves), "{name}: halves");
+            assert_eq!(sums.weight[p].to_bits(), given.to_bits(), "{name}: weight");
+            compared += u64::from(start > 0);
+        }
+    }
+    // Most pixels have samples; some have none in a pass, or none at all.
+    assert!(
+        compared > 3 * 150,
+        "{compared} pixels with samples compared"
+    );
 }

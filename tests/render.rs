@@ -812,10 +812,11 @@ fn camera_samples_are_summed_per_pixel_and_resolved() {
     assert!(film.aov("absent").is_none() && layer.channel("absent").is_none());
 }
 
-/// Cancelling stops before the next packet of camera samples (the `PACKET_SIZE` samples of one
-/// pixel that are traced and shaded together): with one thread and 1000 samples a pixel, a
-/// cancel raised by the 2500th sample lets its packet finish and leaves exactly two finished
-/// pixels, kept, and the third, cut short, black; the statistics say so.
+/// Cancelling stops before the next packet of camera samples (the `PACKET_SIZE` samples of
+/// consecutive pixels that are traced and shaded together): with one thread and 1000 samples a
+/// pixel, a cancel raised by the 2500th sample lets its packet finish and leaves exactly two
+/// finished pixels, kept, and the third, cut short, black (its sums from before the pass given
+/// back); the statistics say so.
 #[test]
 fn cancelling_stops_at_the_next_packet_and_keeps_finished_pixels() {
     use std::sync::atomic::Ordering;
@@ -830,9 +831,9 @@ fn cancelling_stops_at_the_next_packet_and_keeps_finished_pixels() {
         &integrator.cancel,
     )
     .expect("render");
-    // Sample 500 of the third pixel is in its packet 500 / PACKET_SIZE, which is shaded whole.
+    // The 2500th sample is in packet 2499 / PACKET_SIZE of the tile, which is shaded whole.
     let packet = lumis::geometry::PACKET_SIZE as u64;
-    let shaded = 2000 + (500 / packet + 1) * packet;
+    let shaded = (2499 / packet + 1) * packet;
     assert_eq!(integrator.shaded.load(Ordering::Relaxed), shaded);
     assert_eq!((stats.pixels_done, stats.pixels_total), (2, 256));
     assert_eq!((stats.tiles_done, stats.tiles_total), (0, 1));

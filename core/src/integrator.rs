@@ -143,8 +143,8 @@ impl CameraSample {
     }
 
     /// Traces the primary rays of `samples` as packets ([`Geometry::intersect_packet`]): the
-    /// camera samples of one pixel share the camera's origin and nearly a direction, so they
-    /// visit the same nodes. Each sample keeps its hit for [`CameraSample::hit`].
+    /// camera samples of one pixel and of its neighbours share the camera's origin and nearly a
+    /// direction, so they visit the same nodes. Each sample keeps its hit for [`CameraSample::hit`].
     ///
     /// [`Geometry::intersect_packet`]: crate::geometry::Geometry::intersect_packet
     pub fn trace_together(scene: &Scene, samples: &mut [CameraSample]) {
@@ -192,16 +192,18 @@ pub trait Integrator: Send + Sync {
     /// only add: core may shade a pixel's samples in parts and add the parts' sums.
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb;
 
-    /// [`shade`](Self::shade) for camera samples of one pixel at once (a packet core traced
-    /// together, [`CameraSample::trace_together`]): writes each one's estimate to `radiance`
-    /// (as long as `samples`) and adds their statistics to `sums`. The default shades them one
-    /// by one; an integrator whose work batches across samples overrides it, and must give what
-    /// `shade` gives, bit for bit (estimates and sums).
+    /// [`shade`](Self::shade) for a packet of camera samples at once (core's packets span
+    /// consecutive pixels of a tile, each pixel's samples in index order, and are traced
+    /// together, [`CameraSample::trace_together`]): writes each one's estimate to `radiance` (as
+    /// long as `samples`) and adds sample k's statistics to its own pixel's sums,
+    /// `sums.of(k)`, in the order of the samples. The default shades them one by one; an
+    /// integrator whose work batches across samples overrides it, and must give what `shade`
+    /// gives, bit for bit (estimates and sums).
     fn shade_together(
         &self,
         scene: &Scene,
         samples: &mut [CameraSample],
-        sums: &mut [f64],
+        sums: &mut PacketSums<'_>,
         radiance: &mut [Rgb],
     ) {
         shade_one_by_one(self, scene, samples, sums, radiance);
@@ -213,16 +215,65 @@ pub trait Integrator: Send + Sync {
 }
 
 /// [`Integrator::shade_together`] done one sample at a time with
-/// [`shade`](Integrator::shade): the default, and an override's way out.
+/// [`shade`](Integrator::shade), each adding to its own pixel's sums: the default, and an
+/// override's way out.
 pub fn shade_one_by_one<I: Integrator + ?Sized>(
     integrator: &I,
     scene: &Scene,
     samples: &mut [CameraSample],
-    sums: &mut [f64],
+    sums: &mut PacketSums<'_>,
     radiance: &mut [Rgb],
 ) {
     assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
-    for (sample, radiance) in samples.iter_mut().zip(radiance) {
-        *radiance = integrator.shade(scene, sample, sums);
+    assert_eq!(samples.len(), sums.samples(), "one pixel per sample");
+    for (k, (sample, radiance)) in samples.iter_mut().zip(radiance).enumerate() {
+        *radiance = integrator.shade(scene, sample, sums.of(k));
+    }
+}
+
+/// The sums a packet of camera samples adds its statistics to: the sums of the pixels its
+/// samples belong to, `stride` ([`Integrator::pixel_sums`]) per pixel, and each sample's pixel.
+pub struct PacketSums<'a> {
+    sums: &'a mut [f64],
+    stride: usize,
+    /// Sample k's pixel: its sums are `sums[pixels[k] * stride..][..stride]`.
+    pixels: &'a [u32],
+}
+
+impl<'a> PacketSums<'a> {
+    /// The sums of a packet whose sample k belongs to pixel `pixels[k]` of `sums` (`stride`
+    /// sums a pixel, e.g. a tile's).
+    pub fn new(sums: &'a mut [f64], stride: usize, pixels: &'a [u32]) -> Self {
+        assert!(
+            pixels
+                .iter()
+                .all(|&p| (p as usize + 1) * stride <= sums.len()),
+            "every sample's pixel has its sums"
+        );
+        PacketSums {
+            sums,
+            stride,
+            pixels,
+        }
+    }
+
+    /// The sums of a packet of `samples` camera samples of one pixel, whose sums are `sums`.
+    pub fn one_pixel(sums: &'a mut [f64], samples: usize) -> Self {
+        const FIRST: [u32; PACKET_SIZE] = [0; PACKET_SIZE];
+        assert!(samples <= PACKET_SIZE, "at most a packet of samples");
+        let stride = sums.len();
+        PacketSums::new(sums, stride, &FIRST[..samples])
+    }
+
+    /// Sample k's pixel's sums.
+    #[inline]
+    pub fn of(&mut self, k: usize) -> &mut [f64] {
+        let first = self.pixels[k] as usize * self.stride;
+        &mut self.sums[first..first + self.stride]
+    }
+
+    /// The number of samples in the packet.
+    pub fn samples(&self) -> usize {
+        self.pixels.len()
     }
 }

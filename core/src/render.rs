@@ -2,7 +2,8 @@
 //!
 //! Core owns the camera samples: a pass gives each pixel camera samples from its count so far up
 //! to the pass's end ([`CameraSample::new`] draws each one's stream and ray; their primary rays
-//! are traced sixteen at a time, [`CameraSample::trace_together`]), adds each colour the
+//! are traced sixteen at a time across consecutive pixels of a tile,
+//! [`CameraSample::trace_together`]), adds each colour the
 //! integrator returns times the pass's weight to the pixel's sums (f64), and lets the integrator
 //! add its statistics. The sums ([`FilmSums`]) are the primary data; only then are they resolved
 //! into colours and AOV values. Sums over disjoint sets of camera samples add up, so tiles
@@ -16,7 +17,7 @@ use crate::film::Film;
 pub use crate::film_sums::FilmSums;
 use crate::film_sums::{TileSumsMut, pixel_color, tiles};
 use crate::geometry::{PACKET_SIZE, take_ray_count};
-use crate::integrator::{CameraSample, Integrator};
+use crate::integrator::{CameraSample, Integrator, PacketSums};
 use crate::math::Rgb;
 use crate::passes::{Budget, PlannedPass, give, sample_weight};
 use crate::scene::Scene;
@@ -106,8 +107,8 @@ pub fn render(
 }
 
 /// As [`render`], but stops soon after `cancel` becomes true: it is checked before every
-/// packet of camera samples (the [`PACKET_SIZE`] samples of a pixel traced and shaded
-/// together), so a render stops within one packet per thread. A pixel is *finished*
+/// packet of camera samples (the [`PACKET_SIZE`] samples of consecutive pixels of a tile traced
+/// and shaded together, [`render_tile`]), so a render stops within one packet per thread. A pixel is *finished*
 /// when all its `spp` camera samples are done; the film holds every finished pixel, the pixels
 /// that were not finished stay black (colour and AOVs zero), and the statistics count both.
 ///
@@ -278,9 +279,14 @@ struct TileDone {
     complete: bool,
 }
 
-/// Renders a tile's pass: per pixel, in row order, camera samples from its count up to its end,
-/// until `cancel`; a pixel whose samples were cut short gets its sums from before the pass back,
-/// so that every pixel kept has all the samples of each pass it has.
+/// Renders a tile's pass: the pixels in row order, each its camera samples from its count up to
+/// its end, made, traced and shaded in packets of [`PACKET_SIZE`] that span consecutive pixels
+/// (a pixel's samples in index order, then the next pixel's: neighbouring pixels' camera rays
+/// are coherent too, and a pixel of few samples still fills a packet). Each sample's colour and
+/// statistics go to its own pixel's sums, in index order, as they would one pixel at a time.
+/// `cancel` is checked before each packet; the pixel the packets so far have cut short gets its
+/// sums from before the pass back, so that every pixel kept has all the samples of each pass it
+/// has.
 fn render_tile(
     scene: &Scene,
     integrator: &dyn Integrator,
@@ -289,60 +295,142 @@ fn render_tile(
     cancel: &AtomicBool,
 ) -> TileDone {
     let tile = part.tile;
-    let window = scene.window;
     let stride = part.sums.len() / tile.pixels();
     let keep_halves = !part.halves.is_empty();
     let mut done = TileDone::default();
-    // The camera samples of a pixel, made, traced and shaded PACKET_SIZE at a time.
+    // The packet: its samples, each one's pixel (its slot in the tile) and estimate, and its
+    // runs of samples of one pixel.
     let mut batch = Vec::with_capacity(PACKET_SIZE);
+    let mut slots = [0u32; PACKET_SIZE];
     let mut radiance = [Rgb::ZERO; PACKET_SIZE];
+    let mut runs = [Run::default(); PACKET_SIZE];
+    // The pixel whose samples are being made, and its sums from before the pass.
+    let mut open = OpenPixel::default();
     let mut before = vec![0.0; stride];
-    'pixels: for y in 0..tile.size.y {
-        for x in 0..tile.size.x {
-            let i = (y * tile.size.x + x) as usize;
-            let plan = budget.pixel(tile.first + i);
-            let start = part.samples[i];
-            if start >= plan.end {
+    let (mut before_color, mut before_halves) = (DVec3::ZERO, [0.0; 2]);
+    let mut next_slot = 0;
+    loop {
+        if cancel.load(Ordering::Relaxed) {
+            if open.next < open.end {
+                let i = open.slot as usize;
+                part.sums[i * stride..(i + 1) * stride].copy_from_slice(&before);
+                part.color[i] = before_color;
+                if keep_halves {
+                    part.halves[i] = before_halves;
+                }
+                part.samples[i] = open.start;
+            }
+            return done;
+        }
+        batch.clear();
+        let mut run_count = 0;
+        while batch.len() < PACKET_SIZE {
+            if open.next == open.end {
+                // The next pixel with samples in this pass; those without have theirs.
+                while next_slot < tile.pixels()
+                    && part.samples[next_slot] >= budget.pixel(tile.first + next_slot).end
+                {
+                    done.finished += 1;
+                    next_slot += 1;
+                }
+                if next_slot == tile.pixels() {
+                    break;
+                }
+                let i = next_slot;
+                next_slot += 1;
+                open = OpenPixel::new(scene, part, budget, i);
+                before.copy_from_slice(&part.sums[i * stride..(i + 1) * stride]);
+                before_color = part.color[i];
+                if keep_halves {
+                    before_halves = part.halves[i];
+                }
+            }
+            let first = batch.len();
+            let last = (open.next + (PACKET_SIZE - first) as u32).min(open.end);
+            CameraSample::extend_pixel(scene, open.pixel, open.next..last, &mut batch);
+            slots[first..batch.len()].fill(open.slot);
+            runs[run_count] = Run {
+                slot: open.slot,
+                first,
+                end: batch.len(),
+                u: open.u,
+                finished: (last == open.end).then_some((open.start, open.end)),
+            };
+            run_count += 1;
+            open.next = last;
+        }
+        if batch.is_empty() {
+            return done;
+        }
+        let n = batch.len();
+        CameraSample::trace_together(scene, &mut batch);
+        let mut sums = PacketSums::new(part.sums, stride, &slots[..n]);
+        integrator.shade_together(scene, &mut batch, &mut sums, &mut radiance[..n]);
+        for run in &runs[..run_count] {
+            let i = run.slot as usize;
+            let samples = &batch[run.first..run.end];
+            for (r, sample) in radiance[run.first..run.end].iter().zip(samples) {
+                // The reconstruction filter's weight f/p of the sample's film position.
+                let r = *r * sample.weight;
+                part.color[i] += r.as_dvec3() * run.u;
+                if keep_halves {
+                    part.halves[i][(sample.index & 1) as usize] += run.u * luminance(r);
+                }
+            }
+            part.samples[i] += samples.len() as u32;
+            if let Some((start, end)) = run.finished {
+                part.weight[i] = give(part.weight[i], run.u, end - start);
                 done.finished += 1;
-                continue;
+                done.samples += u64::from(end - start);
             }
-            let pixel = UVec2::new(window.x + tile.origin.x + x, window.y + tile.origin.y + y);
-            let u = sample_weight(budget.mass, part.weight[i], plan.planned);
-            let sums = &mut part.sums[i * stride..(i + 1) * stride];
-            let (color, halves) = (part.color[i], part.halves.get(i).copied());
-            before.copy_from_slice(sums);
-            for first in (start..plan.end).step_by(PACKET_SIZE) {
-                if cancel.load(Ordering::Relaxed) {
-                    sums.copy_from_slice(&before);
-                    part.color[i] = color;
-                    if let Some(h) = halves {
-                        part.halves[i] = h;
-                    }
-                    part.samples[i] = start;
-                    break 'pixels;
-                }
-                let last = (first + PACKET_SIZE as u32).min(plan.end);
-                batch.clear();
-                CameraSample::extend_pixel(scene, pixel, first..last, &mut batch);
-                CameraSample::trace_together(scene, &mut batch);
-                let radiance = &mut radiance[..batch.len()];
-                integrator.shade_together(scene, &mut batch, sums, radiance);
-                for ((index, r), sample) in (first..).zip(radiance.iter()).zip(&batch) {
-                    // The reconstruction filter's weight f/p of the sample's film position.
-                    let r = *r * sample.weight;
-                    part.color[i] += r.as_dvec3() * u;
-                    if keep_halves {
-                        part.halves[i][(index & 1) as usize] += u * luminance(r);
-                    }
-                }
-                part.samples[i] += batch.len() as u32;
-            }
-            part.weight[i] = give(part.weight[i], u, plan.end - start);
-            done.finished += 1;
-            done.samples += u64::from(plan.end - start);
         }
     }
-    done
+}
+
+/// The pixel of a tile whose camera samples [`render_tile`] is making.
+#[derive(Default)]
+struct OpenPixel {
+    /// Its index in the tile.
+    slot: u32,
+    /// Its film coordinates.
+    pixel: UVec2,
+    /// Its samples of the pass: `start..end`, of which `next..end` are still to be made.
+    start: u32,
+    next: u32,
+    end: u32,
+    /// The weight of its samples in this pass ([`sample_weight`]).
+    u: f64,
+}
+
+impl OpenPixel {
+    /// Pixel `i` of `part`'s tile, from its count so far to its end in `budget`.
+    fn new(scene: &Scene, part: &TileSumsMut<'_>, budget: &Budget, i: usize) -> Self {
+        let (tile, window) = (part.tile, scene.window);
+        let plan = budget.pixel(tile.first + i);
+        let (x, y) = (i as u32 % tile.size.x, i as u32 / tile.size.x);
+        OpenPixel {
+            slot: i as u32,
+            pixel: UVec2::new(window.x + tile.origin.x + x, window.y + tile.origin.y + y),
+            start: part.samples[i],
+            next: part.samples[i],
+            end: plan.end,
+            u: sample_weight(budget.mass, part.weight[i], plan.planned),
+        }
+    }
+}
+
+/// The samples of one pixel in a packet.
+#[derive(Clone, Copy, Default)]
+struct Run {
+    /// The pixel's index in the tile.
+    slot: u32,
+    /// Where its samples are in the packet: `first..end`.
+    first: usize,
+    end: usize,
+    /// Their weight ([`sample_weight`]).
+    u: f64,
+    /// The pixel's samples of the pass, `start..end`, if this run is its last.
+    finished: Option<(u32, u32)>,
 }
 
 /// The luminance of a colour, in f64 (the error estimate's quantity).

@@ -233,7 +233,7 @@ impl Geometry {
     }
 
     /// The closest intersections along rays that share an origin, such as a pinhole camera's
-    /// rays through one pixel: `hits[i]` is what [`Geometry::intersect`] returns for `rays[i]`,
+    /// rays through neighbouring pixels: `hits[i]` is what [`Geometry::intersect`] returns for `rays[i]`,
     /// found by traversing the BVH once for up to [`PACKET_SIZE`] rays
     /// (`WideBvh::closest_hit_packet`). Each ray tests every primitive its own traversal
     /// would test before reaching its closest hit, so it finds that hit; only where two

@@ -25,7 +25,7 @@ pub trait Allocation: Send + Sync {
     ) -> LightEstimate;
 
     /// [`estimate`](Self::estimate) for the samplings of one light at several shading points
-    /// (the camera samples of a pixel): `estimates[k]` for `samplings[k]`, `None` entries
+    /// (a packet of camera samples): `estimates[k]` for `samplings[k]`, `None` entries
     /// skipped. The default estimates them one by one; an allocation whose phases do not depend
     /// on each other's results may draw them together ([`LightSampling::phases_together`]),
     /// giving each what `estimate` would, bit for bit.

@@ -230,7 +230,7 @@ impl TwoPhases {
     }
 
     /// [`estimate`](Self::estimate) for the samplings of one light at several shading points
-    /// (the camera samples of a pixel), each with a new observer, its estimate in
+    /// (a packet of camera samples), each with a new observer, its estimate in
     /// `estimates[k]`: a packet ([`PACKET_SIZE`] points) at a time, each phase of its points
     /// drawn together where the phases are small ([`LightSampling::phases`]), so that α's two
     /// phases of N/2 samples fill the batch kernels' lanes as one phase of N does. Every

@@ -12,7 +12,7 @@ use crate::phase::LightEstimate;
 use crate::sampling::{LightSampling, PhaseBuffers};
 use crate::shading_point::ShadingPoint;
 use lumis_core::geometry::PACKET_SIZE;
-use lumis_core::integrator::{CameraSample, Integrator, shade_one_by_one};
+use lumis_core::integrator::{CameraSample, Integrator, PacketSums, shade_one_by_one};
 use lumis_core::math::Rgb;
 use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -149,17 +149,18 @@ impl<M: Method> Integrator for MisIntegrator<M> {
     }
 
     /// Each light's phases for the packet's samples drawn together
-    /// ([`Method::estimate_together`]), when there are several samples and neither an AOV nor
-    /// the method's learning asks for statistics (their sums would be added in another order);
-    /// one by one otherwise.
+    /// ([`Method::estimate_together`]), whatever pixels they belong to, when there are several
+    /// samples and neither an AOV nor the method's learning asks for statistics (their sums
+    /// would be added in another order); one by one otherwise, each sample adding to its own
+    /// pixel's sums.
     fn shade_together(
         &self,
         scene: &Scene,
         samples: &mut [CameraSample],
-        sums: &mut [f64],
+        sums: &mut PacketSums<'_>,
         radiance: &mut [Rgb],
     ) {
-        // A packet of one (one sample a pixel) has nothing to share, and the packet's arrays
+        // A packet of one (a tile's last sample) has nothing to share, and the packet's arrays
         // below would cost it more than its own batches do.
         if self.aovs.any()
             || self.method.learning()

@@ -237,8 +237,8 @@ impl<'a> LightSampling<'a> {
         self.finish_phase(split, role, weighting, observer)
     }
 
-    /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
-    /// camera samples of a pixel), each with its observer: `splits[k]` for `samplings[k]`,
+    /// [`phase`](Self::phase) for the samplings of one light at several shading points (a
+    /// packet of camera samples), each with its observer: `splits[k]` for `samplings[k]`,
     /// seen by `observers[k]`, whose estimate goes to `values[k]` (`None` entries skipped).
     /// Drawn together ([`phases_together`](Self::phases_together)) where no phase fills the
     /// batch kernels' lanes by itself ([`SampleSplit::fills`] with [`widest_width`]), one by
@@ -269,8 +269,8 @@ impl<'a> LightSampling<'a> {
         }
     }
 
-    /// [`phase`](Self::phase) for the samplings of one light at several shading points (the
-    /// camera samples of a pixel): `splits[k]` for `samplings[k]`, seen by `observers[k]`,
+    /// [`phase`](Self::phase) for the samplings of one light at several shading points (a
+    /// packet of camera samples): `splits[k]` for `samplings[k]`, seen by `observers[k]`,
     /// whose estimate goes to `values[k]` (`None` entries skipped). The samples are drawn with
     /// one batch call per technique for all the points (for the BSDF, one per run of points
     /// that share a BSDF), each from its own stream in the order `phase` draws it, so that
