@@ -14,7 +14,7 @@ cd "$(dirname "$0")/.."
 # One group per line: cargo's target selection, then `--`, then test-name filters (none: the
 # whole binary, all of whose tests take the seed).
 groups=(
-    "--lib -- chi2:: testing:: filter::tests:: passes::tests::planned_weights error_estimate::tests::the_relative_error budgets::tests:: envmap::tests::compensated study::summary::tests::nominal example_methods_converge_to_balance"
+    "--lib -- chi2:: testing:: filter::tests:: passes::tests::planned_weights error_estimate::tests::the_relative_error error_estimate::tests::the_conservative_nu budgets::tests:: envmap::tests::compensated study::summary::tests::nominal example_methods_converge_to_balance"
     "--test sampling"
     "--test bsdfs"
     "--test emitters -- emitters:: envmap_bilinear::"

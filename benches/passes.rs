@@ -16,7 +16,8 @@
 //! (the reference's own variance taken out), the stated estimate and interval; over the renders
 //! the fraction with e < E (*honest stopping*: at least the confidence) and the fraction whose
 //! stated interval holds e (*coverage*: the nominal two-sided confidence), each with its 95 %
-//! Wilson interval, the samples and passes used and why the renders stopped.
+//! Wilson interval, the samples and passes used and why the renders stopped; on stderr one line
+//! per render (its samples, e, the stated estimate, interval and ν, why it stopped).
 //!
 //! `bias`: per scene, R renders to the target error (planned weights), R renders of the same
 //! target by the biased rule (equal weights, stopped after the first pass whose own estimate is
@@ -269,6 +270,17 @@ fn coverage(o: &Options, scene: &Path) {
             .resolve(&loaded.scene, loaded.integrator.as_ref());
         let e = true_error(&luminance(&film), &reference, o.metric);
         let stated = state.history.error().expect("an error estimate");
+        // One line per render on stderr, for looking at the misses.
+        eprintln!(
+            "{} seed {seed}: {} spp, e {e:.5}, stated {:.5} [{:.5}, {:.5}], nu {:.1}, {}",
+            scene.file_stem().unwrap().to_string_lossy(),
+            state.history.samples(),
+            stated.value,
+            stated.low,
+            stated.high,
+            stated.degrees_of_freedom().unwrap_or(f64::NAN),
+            state.history.stopped.map_or("none", |s| s.name())
+        );
         below += usize::from(e < o.target);
         covered += usize::from(stated.low <= e && e <= stated.high);
         above_high += usize::from(e > stated.high);

@@ -704,8 +704,8 @@ fn image_mean(
 /// The combination rule on a scene, where a stop that sees the data is biased: a floor lit only
 /// by a small bright light found by BSDF sampling alone (each pixel's value is its rare hits),
 /// on a 4 × 4 film, so that the error estimate that decides a stop moves with the image's mean.
-/// `RENDERS` renders to the target by the planner, as many by the biased rule (equal weights,
-/// stopped after the first pass of 2 samples whose own estimate is below the target) and as
+/// `RENDERS` renders to `PLANNED_TARGET` by the planner, as many by the biased rule (equal
+/// weights, stopped after the first pass of 2 samples whose own estimate is below `TARGET`) and as
 /// many plain renders of `PLAIN_SPP`, seeds disjoint (offset by the test seed): each rule's mean
 /// image luminance against the plain renders' (Welch z). The planned rule's within the suite's
 /// false-alarm limit, the biased rule's beyond it.
@@ -715,6 +715,9 @@ fn a_stop_after_seeing_is_caught_on_a_scene_and_the_planned_stop_is_not() {
     const RENDERS: u64 = 400;
     const PLAIN_SPP: u32 = 1024;
     const TARGET: f64 = 0.2;
+    // Looser for the planner: on 16 pixels its conservative ν is small (a few), and at 0.2 its
+    // renders reach the cap, where the stop no longer depends on the data.
+    const PLANNED_TARGET: f64 = 0.8;
     const CAP: u32 = 4096;
     let text = SMALL_SCENE
         .replace(r#"type: "balance""#, r#"type: "bsdf""#)
@@ -722,7 +725,7 @@ fn a_stop_after_seeing_is_caught_on_a_scene_and_the_planned_stop_is_not() {
     let (_dir, path) = scene_file("fireflies.ron", &text);
     let mut loaded = load(&path, &[&format!("sampler.spp={PLAIN_SPP}")]).unwrap();
     let first = test_seed() * 1_000_000;
-    let planned = target(TARGET, CAP);
+    let planned = target(PLANNED_TARGET, CAP);
     let equal = Settings {
         stopping: Stopping::Samples {
             spp: CAP,

@@ -32,10 +32,22 @@
 //! The interval and the bound a stop is planned with use the distribution of e/ê rather than a
 //! normal one: each pixel's term of e and of ê is c_p χ²₁ (normal half-means, c_p the pixel's
 //! variance over d_p), the terms of e from X + Z and those of ê from X − Z, independent; so e and
-//! ê are each about (Σc/P) χ²_ν/ν with ν = (Σc)²/Σc² (Satterthwaite), and e/ê is about F(ν, ν).
-//! ν is estimated from the terms as 3(Σt)²/Σt² (E t² = 3c²), at most the pixels: a few dominant
-//! pixels (fireflies) make ν small and the interval wide and skewed upwards, where a normal
-//! interval over 1 200 pixels would be narrow.
+//! ê are each about (Σc/P) χ²_ν/ν with ν = 2(Σc)²/Σ Var t (Satterthwaite), and e/ê is about
+//! F(ν, ν), ν at most the pixels. A few dominant pixels (fireflies) make ν small and the interval
+//! wide and skewed upwards, where a normal interval over 1 200 pixels would be narrow.
+//!
+//! **A conservative ν.** ν is estimated from the terms, and two things make the plug-in read
+//! high (measured in docs/study.md: with ν̂ = 3(Σt)²/Σt² the bound ê·F⁻¹(0.975; ν̂, ν̂) missed e
+//! in 6–10 % of Cornell's renders at 128–512 spp). Normal half-means give E t² = 3c² and
+//! Var t = 2c², hence that ν̂; heavy-tailed ones have excess kurtosis κ, E t² = (3 + κ)c² and
+//! Var t = (2 + κ)c², and only Var t ≤ E t² holds whatever κ: the distribution-free
+//! 2(Σt)²/Σt² (the normal form reads high by up to 3/2). And Σt² is itself a sum of a few large
+//! terms when few pixels dominate (t² of a χ²₁ term has a kurtosis near 100), so in the typical
+//! render it misses the rare large terms and ν̂ reads high however the samples are distributed.
+//! Its variance is at most Σ E t⁴, estimated by Σt⁴, so the variance taken for ê is the upper
+//! confidence limit (Σt² + z √Σt⁴)/P² at the interval's one-sided confidence (z = 1.96 at 95 %):
+//! ν = 2(Σt)²/(Σt² + z √Σt⁴). With many alike pixels this is about 2/3 of the normal ν; with few
+//! dominant ones much less, which is where the normal ν failed.
 
 use crate::film_sums::FilmSums;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor, Normal};
@@ -87,8 +99,8 @@ pub struct ErrorEstimate {
     /// taken from the estimate that errs the other way.
     pub low: f64,
     pub high: f64,
-    /// Var(ê) around its expectation (half of Var(e − ê): e and ê are alike), 2ê²/ν: what a
-    /// prediction of later error from ê must allow for.
+    /// Var(ê) around its expectation, 2ê²/ν, estimated conservatively (the module's comment,
+    /// "A conservative ν"): what a prediction of later error from ê must allow for.
     pub variance: f64,
     /// Pixels with samples, over which the error is averaged.
     pub pixels: u64,
@@ -185,42 +197,31 @@ pub fn estimate(sums: &FilmSums, metric: Metric, confidence: f64) -> Option<Erro
     }
     let epsilon = epsilon(sums, metric);
     // ê's terms, and the plug-in's (the same for the MSE) for the interval's low end.
-    let (mut total, mut squares, mut low_total, mut low_squares, mut pixels) =
-        (0.0, 0.0, 0.0, 0.0, 0u64);
+    let (mut terms, mut low_terms) = (TermSums::default(), TermSums::default());
     for (_, a, b) in halves(sums) {
-        let t = term(a, b, metric, epsilon, false);
-        let l = term(a, b, metric, epsilon, true);
-        total += t;
-        squares += t * t;
-        low_total += l;
-        low_squares += l * l;
-        pixels += 1;
+        terms.add(term(a, b, metric, epsilon, false));
+        low_terms.add(term(a, b, metric, epsilon, true));
     }
-    if pixels == 0 {
-        return None;
-    }
-    let n = pixels as f64;
-    let value = total / n;
-    // (A − B)⁴ / (12 d²) = (4/3) t² per pixel.
-    let variance_of_difference = 4.0 / 3.0 * squares / (n * n);
-    if !(value.is_finite() && variance_of_difference.is_finite()) {
-        return None;
-    }
+    let tail = (1.0 - confidence) / 2.0;
+    let z = standard_normal().inverse_cdf(1.0 - tail);
+    let value = terms.mean()?;
     let mut estimate = ErrorEstimate {
         metric,
         confidence,
         value,
         low: value,
         high: value,
-        variance: variance_of_difference / 2.0,
-        pixels,
+        variance: terms.variance(z),
+        pixels: terms.pixels,
     };
+    if !(value.is_finite() && estimate.variance.is_finite()) {
+        return None;
+    }
     let plug_in = ErrorEstimate {
-        value: low_total / n,
-        variance: 2.0 / 3.0 * low_squares / (n * n),
+        value: low_terms.mean()?,
+        variance: low_terms.variance(z),
         ..estimate
     };
-    let tail = (1.0 - confidence) / 2.0;
     if let Some(nu) = estimate.degrees_of_freedom() {
         estimate.high = value * ratio_quantile(nu, 1.0 - tail);
     }
@@ -228,6 +229,37 @@ pub fn estimate(sums: &FilmSums, metric: Metric, confidence: f64) -> Option<Erro
         estimate.low = plug_in.value * ratio_quantile(nu, tail);
     }
     Some(estimate)
+}
+
+/// The sums of the per-pixel terms that ê and its variance are computed from.
+#[derive(Default)]
+struct TermSums {
+    total: f64,
+    squares: f64,
+    fourths: f64,
+    pixels: u64,
+}
+
+impl TermSums {
+    fn add(&mut self, t: f64) {
+        let square = t * t;
+        self.total += t;
+        self.squares += square;
+        self.fourths += square * square;
+        self.pixels += 1;
+    }
+
+    /// ê, the terms' mean; `None` without terms.
+    fn mean(&self) -> Option<f64> {
+        (self.pixels > 0).then(|| self.total / self.pixels as f64)
+    }
+
+    /// Var(ê), conservatively: Σ Var t ≤ Σ E t² whatever the samples' kurtosis, and Σ E t² at
+    /// its upper confidence limit Σt² + z √Σt⁴ (the module's comment, "A conservative ν").
+    fn variance(&self, z: f64) -> f64 {
+        let n = self.pixels as f64;
+        (self.squares + z * self.fourths.sqrt()) / (n * n)
+    }
 }
 
 /// Each pixel's term of ê (row order of the window: `width` × `height`), for the heat map; 0
@@ -311,6 +343,72 @@ mod tests {
         assert!(
             z_plug_in < -limit,
             "the plug-in is not caught: z = {z_plug_in}"
+        );
+    }
+
+    /// 64 pixels of which 4 dominate (4 times the others' spread), their samples heavy-tailed
+    /// (a bright value in 5 % of them, 20 times the typical one), 8 samples per half, the MSE:
+    /// over 1 000 replicate images the one-sided bound ê·F⁻¹(0.975; ν, ν) holds the true error at
+    /// least at its nominal rate with the conservative ν (18–25 misses at seeds 0–4), and the
+    /// normal ν̂ = 3(Σt)²/Σt² is caught missing more (79–101): both against the binomial limit
+    /// of misses at 2.5 % at the suite's false-alarm rate (46). About 0.05 s.
+    #[test]
+    fn the_conservative_nu_bounds_the_error_where_the_normal_nu_did_not() {
+        use crate::chi2::{FAMILY_FALSE_ALARM, binomial_limit, test_sampler};
+        let (pixels, dominant, per_half, replicates) = (64, 4, 8, 1000);
+        let (p, bright, tail) = (0.05, 20.0, 0.025);
+        let mean = p * bright + (1.0 - p) * 0.5;
+        let z = standard_normal().inverse_cdf(1.0 - tail);
+        let mut sampler = test_sampler(4646);
+        let (mut misses, mut normal_misses) = (0, 0);
+        for _ in 0..replicates {
+            let (mut terms, mut error) = (TermSums::default(), 0.0);
+            for pixel in 0..pixels {
+                let scale = if pixel < dominant { 4.0 } else { 1.0 };
+                let mut half = || {
+                    let sum: f64 = (0..per_half)
+                        .map(|_| {
+                            if sampler.next_1d() < p as f32 {
+                                bright
+                            } else {
+                                f64::from(sampler.next_1d())
+                            }
+                        })
+                        .sum();
+                    scale * sum / per_half as f64
+                };
+                let (a, b) = (half(), half());
+                terms.add(term(a, b, Metric::Mse, 0.0, false));
+                error += ((a + b) / 2.0 - scale * mean).powi(2) / pixels as f64;
+            }
+            let value = terms.mean().expect("terms");
+            let conservative = ErrorEstimate {
+                metric: Metric::Mse,
+                confidence: 1.0 - 2.0 * tail,
+                value,
+                low: value,
+                high: value,
+                variance: terms.variance(z),
+                pixels: terms.pixels,
+            };
+            let normal = ErrorEstimate {
+                variance: 2.0 / 3.0 * terms.squares / (pixels * pixels) as f64,
+                ..conservative
+            };
+            for (estimate, count) in [(conservative, &mut misses), (normal, &mut normal_misses)] {
+                let bound = estimate.upper_bound(1.0 - tail).expect("a bound");
+                *count += u64::from(error > bound);
+            }
+        }
+        let limit = binomial_limit(replicates, tail, FAMILY_FALSE_ALARM / 2.0);
+        eprintln!("misses of {replicates}: conservative ν {misses}, normal ν̂ {normal_misses}");
+        assert!(
+            misses <= limit,
+            "the conservative bound misses {misses} of {replicates} (limit {limit})"
+        );
+        assert!(
+            normal_misses > limit,
+            "the normal bound is not caught: {normal_misses} misses of {replicates} (limit {limit})"
         );
     }
 
