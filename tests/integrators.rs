@@ -1315,11 +1315,7 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
                 (2, true),
             ];
             for (n, aovs) in cases {
-                let aov_list = if aovs {
-                    format!("integrator.aovs={:?}", aovs::NAMES)
-                } else {
-                    "integrator.aovs=[]".to_string()
-                };
+                let aov_list = aov_override(aovs);
                 let overrides: Vec<String> = film
                     .iter()
                     .map(|o| o.to_string())
@@ -1427,11 +1423,7 @@ fn packets_across_pixels_give_each_pixel_its_own_sums() {
     };
     let mut compared = 0;
     for (kind, aovs) in [("balance", true), ("balance", false), ("alpha", true)] {
-        let aov_list = if aovs {
-            format!("integrator.aovs={:?}", aovs::NAMES)
-        } else {
-            "integrator.aovs=[]".to_string()
-        };
+        let aov_list = aov_override(aovs);
         let overrides: Vec<String> = film
             .iter()
             .map(|o| o.to_string())
@@ -1518,4 +1510,13 @@ fn packets_across_pixels_give_each_pixel_its_own_sums() {
         compared > 3 * 150,
         "{compared} pixels with samples compared"
     );
+}
+
+/// The override that asks the integrator for every AOV, or for none.
+fn aov_override(all: bool) -> String {
+    if all {
+        format!("integrator.aovs={:?}", aovs::NAMES)
+    } else {
+        "integrator.aovs=[]".to_string()
+    }
 }
