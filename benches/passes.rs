@@ -254,17 +254,9 @@ fn coverage(o: &Options, scene: &Path) {
         loaded.scene.seed = seed as u64;
         loaded.integrator.preprocess(&loaded.scene);
         let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
-        lumis::progressive::run(
-            &loaded.scene,
-            loaded.integrator.as_mut(),
-            &settings,
-            &mut state,
-            Scope::whole(0),
-            &AtomicBool::new(false),
-            &|_| {},
-            &mut |_| Control::Continue,
-        )
-        .expect("render");
+        run_passes(&mut loaded, &settings, &mut state, 0, &mut |_| {
+            Control::Continue
+        });
         let film = state
             .sums
             .resolve(&loaded.scene, loaded.integrator.as_ref());
@@ -344,17 +336,9 @@ fn calibration(o: &Options, scene: &Path) {
             loaded.scene.spp = spp;
             loaded.integrator.preprocess(&loaded.scene);
             let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
-            lumis::progressive::run(
-                &loaded.scene,
-                loaded.integrator.as_mut(),
-                &settings,
-                &mut state,
-                Scope::whole(0),
-                &AtomicBool::new(false),
-                &|_| {},
-                &mut |_| Control::Continue,
-            )
-            .expect("render");
+            run_passes(&mut loaded, &settings, &mut state, 0, &mut |_| {
+                Control::Continue
+            });
             let film = state
                 .sums
                 .resolve(&loaded.scene, loaded.integrator.as_ref());
@@ -393,20 +377,11 @@ fn image_mean(
     loaded.scene.seed = seed;
     loaded.integrator.preprocess(&loaded.scene);
     let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
-    lumis::progressive::run(
-        &loaded.scene,
-        loaded.integrator.as_mut(),
-        settings,
-        &mut state,
-        Scope::whole(0),
-        &AtomicBool::new(false),
-        &|_| {},
-        &mut |state| match (stop_below, state.history.raw_error()) {
-            (Some(target), Some(e)) if e.value < target => Control::Stop,
-            _ => Control::Continue,
-        },
-    )
-    .expect("render");
+    let mut stop = |state: &RenderState| match (stop_below, state.history.raw_error()) {
+        (Some(target), Some(e)) if e.value < target => Control::Stop,
+        _ => Control::Continue,
+    };
+    run_passes(loaded, settings, &mut state, 0, &mut stop);
     let film = state
         .sums
         .resolve(&loaded.scene, loaded.integrator.as_ref());
@@ -502,21 +477,11 @@ fn cost(o: &Options, scene: &Path) {
             } else {
                 let mut state =
                     RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
-                lumis::progressive::run(
-                    &loaded.scene,
-                    loaded.integrator.as_mut(),
-                    &settings,
-                    &mut state,
-                    Scope::whole(1),
-                    &AtomicBool::new(false),
-                    &|_| {},
-                    &mut |state| {
-                        lumis::render_files::write_previews(&state.sums, &preview, 0.0, None)
-                            .expect("preview");
-                        Control::Continue
-                    },
-                )
-                .expect("render");
+                run_passes(&mut loaded, &settings, &mut state, 1, &mut |state| {
+                    lumis::render_files::write_previews(&state.sums, &preview, 0.0, None)
+                        .expect("preview");
+                    Control::Continue
+                });
                 state
                     .sums
                     .resolve(&loaded.scene, loaded.integrator.as_ref())
@@ -577,34 +542,24 @@ fn dump(o: &Options, scene: &Path) {
         loaded.integrator.preprocess(&loaded.scene);
         let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
         let mut frames: Vec<Vec<f64>> = Vec::new();
-        lumis::progressive::run(
-            &loaded.scene,
-            loaded.integrator.as_mut(),
-            &settings,
-            &mut state,
-            Scope::whole(0),
-            &AtomicBool::new(false),
-            &|_| {},
-            &mut |state| {
-                let end = state.history.samples();
-                if end >= 8 && end.is_power_of_two() {
-                    let sums = &state.sums;
-                    let n = sums.samples.len();
-                    let mut a = vec![0.0; n];
-                    let mut b = vec![0.0; n];
-                    for p in 0..n {
-                        let half = sums.weight[p] / 2.0;
-                        let r = sums.row_index(p);
-                        a[r] = sums.halves[p][0] / half;
-                        b[r] = sums.halves[p][1] / half;
-                    }
-                    frames.push(a);
-                    frames.push(b);
+        run_passes(&mut loaded, &settings, &mut state, 0, &mut |state| {
+            let end = state.history.samples();
+            if end >= 8 && end.is_power_of_two() {
+                let sums = &state.sums;
+                let n = sums.samples.len();
+                let mut a = vec![0.0; n];
+                let mut b = vec![0.0; n];
+                for p in 0..n {
+                    let half = sums.weight[p] / 2.0;
+                    let r = sums.row_index(p);
+                    a[r] = sums.halves[p][0] / half;
+                    b[r] = sums.halves[p][1] / half;
                 }
-                Control::Continue
-            },
-        )
-        .expect("render");
+                frames.push(a);
+                frames.push(b);
+            }
+            Control::Continue
+        });
         for f in &frames {
             for v in f {
                 out.write_all(&v.to_le_bytes()).unwrap();
@@ -612,6 +567,28 @@ fn dump(o: &Options, scene: &Path) {
         }
     }
     eprintln!("{}", path.display());
+}
+
+/// Renders the passes `settings` plan on `loaded` from `state` (to its end) on `threads` threads
+/// (0: one per core), calling `on_pass` after each pass.
+fn run_passes(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    settings: &Settings,
+    state: &mut RenderState,
+    threads: usize,
+    on_pass: &mut dyn FnMut(&RenderState) -> Control,
+) {
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        settings,
+        state,
+        Scope::whole(threads),
+        &AtomicBool::new(false),
+        &|_| {},
+        on_pass,
+    )
+    .expect("render");
 }
 
 fn main() {
