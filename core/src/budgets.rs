@@ -236,7 +236,7 @@ fn window_max(values: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chi2::{FAMILY_FALSE_ALARM, test_sampler, z_limit};
+    use crate::chi2::{FAMILY_FALSE_ALARM, mean_and_standard_error, test_sampler, z_limit};
     use crate::output::Window;
     use crate::passes::{PassRecord, give, sample_weight};
     use crate::sampler::Sampler;
@@ -359,10 +359,8 @@ mod tests {
             equal.push(b / n);
         }
         let z = |estimates: &[f64]| {
-            let n = estimates.len() as f64;
-            let m = estimates.iter().sum::<f64>() / n;
-            let v = estimates.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-            (m - MEAN) / (v / n).sqrt()
+            let (m, se) = mean_and_standard_error(estimates);
+            (m - MEAN) / se
         };
         let limit = z_limit(FAMILY_FALSE_ALARM / 2.0);
         let (z_rule, z_equal) = (z(&rule), z(&equal));

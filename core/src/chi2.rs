@@ -74,6 +74,14 @@ pub fn sidak(alpha: f64, tests: usize) -> f64 {
     1.0 - (1.0 - alpha).powf(1.0 / tests.max(1) as f64)
 }
 
+/// The mean of independent estimates and its standard error (from their sample variance).
+pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (variance / n).sqrt())
+}
+
 /// The z such that a standard normal variable exceeds it in absolute value with probability
 /// `alpha`: the two-sided limit of a z-test at significance `alpha`.
 pub fn z_limit(alpha: f64) -> f64 {

@@ -307,7 +307,7 @@ mod tests {
     /// suite's false-alarm limit.
     #[test]
     fn the_relative_error_is_not_hidden_by_its_own_denominator() {
-        use crate::chi2::{FAMILY_FALSE_ALARM, test_sampler, z_limit};
+        use crate::chi2::{FAMILY_FALSE_ALARM, mean_and_standard_error, test_sampler, z_limit};
         let (p, bright, per_half, replicates) = (0.05, 20.0, 8, 20_000);
         let mean = p * bright + (1.0 - p) * 0.5;
         let variance = p * bright * bright + (1.0 - p) / 3.0 - mean * mean;
@@ -332,10 +332,8 @@ mod tests {
             plug_in.push(term(a, b, Metric::RelMse, 0.0, true));
         }
         let z = |terms: &[f64]| {
-            let n = terms.len() as f64;
-            let m = terms.iter().sum::<f64>() / n;
-            let v = terms.iter().map(|t| (t - m).powi(2)).sum::<f64>() / (n - 1.0);
-            (m - truth) / (v / n).sqrt()
+            let (m, se) = mean_and_standard_error(terms);
+            (m - truth) / se
         };
         let limit = z_limit(FAMILY_FALSE_ALARM / 2.0);
         let (z_new, z_plug_in) = (z(&new), z(&plug_in));

@@ -987,7 +987,7 @@ mod tests {
     /// of N Σ w²/n, the variance of the image relative to equal weights at the same samples.
     #[test]
     fn planned_weights_are_unbiased_where_a_stop_after_seeing_is_not() {
-        use crate::chi2::{FAMILY_FALSE_ALARM, test_sampler, z_limit};
+        use crate::chi2::{FAMILY_FALSE_ALARM, mean_and_standard_error, test_sampler, z_limit};
         let (p, bright, dim) = (0.02, 40.0, 0.5);
         let mean = p * bright + (1.0 - p) * dim / 2.0;
         let (goal, cap, replicates) = (0.01, 512, 20_000);
@@ -1062,10 +1062,8 @@ mod tests {
             seen.push(estimate);
         }
         let z = |estimates: &[f64]| {
-            let n = estimates.len() as f64;
-            let m = estimates.iter().sum::<f64>() / n;
-            let v = estimates.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-            ((m - mean) / (v / n).sqrt(), m / mean - 1.0)
+            let (m, se) = mean_and_standard_error(estimates);
+            ((m - mean) / se, m / mean - 1.0)
         };
         let limit = z_limit(FAMILY_FALSE_ALARM / 2.0);
         let ((z_planned, bias_planned), (z_seen, bias_seen)) = (z(&planned), z(&seen));

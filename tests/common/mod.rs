@@ -119,13 +119,7 @@ pub fn read_png(path: &Path) -> Png {
     }
 }
 
-/// Mean of independent estimates and its standard error (from their sample variance).
-pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (variance / n).sqrt())
-}
+pub use lumis::chi2::mean_and_standard_error;
 
 /// The scene rendered with `threads` threads as `lumis render` does: the integrator's `preprocess` (pilot passes, cost
 /// measurements) first.
