@@ -62,8 +62,8 @@ pub struct RenderArgs {
     /// Render in passes until the image's estimated error is below E with the --confidence, or
     /// until a cap: --max-spp (default 4096 samples per pixel) or --max-time. The error is
     /// --metric's, estimated from two half-images (even and odd samples) and stated with its
-    /// interval; the last pass is sized before it runs, so that the image is unbiased, and not
-    /// before 16 samples per pixel. An estimated error of 0 (no sample has found any light) is
+    /// interval; the last pass is sized before it runs, so that the image is unbiased, and the
+    /// render ends with at least 128 samples per pixel (fewer only at a cap). An estimated error of 0 (no sample has found any light) is
     /// unknown, not zero: such a render runs to its cap.
     #[arg(long, allow_negative_numbers = true, value_name = "E", conflicts_with_all = ["time", "passes", "replay"])]
     target_error: Option<f64>,
