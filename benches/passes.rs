@@ -21,10 +21,17 @@
 //!
 //! `bias`: per scene, R renders to the target error (planned weights), R renders of the same
 //! target by the biased rule (equal weights, stopped after the first pass whose own estimate is
-//! below the target: `Control::Stop`) and R plain one-pass renders of `--spp` samples, seeds
-//! disjoint. Each render gives one number, its image's mean luminance; the relative difference
-//! of each rule's mean from the plain renders', its standard error (Welch), its z, and the
-//! relative bias the comparison detects with probability 0.9 at the suite's false-alarm rate.
+//! below the target: `Control::Stop`), R renders by a second biased rule (equal weights, each
+//! pixel keeping its value from the first pass where its own estimate is below the target), R
+//! plain one-pass renders of `--spp` samples compared with, and R more plain renders as the pilot
+//! of the pixel weights; seeds disjoint. Each rule against the plain renders: the relative
+//! difference of the images' mean luminance with its standard error (Welch) and z; then the
+//! suite's per-pixel same-mean comparison (`lumis::same_mean`, as tests/integrators.rs): the
+//! weighted relative bias δ̂ over the whole image, its standard error from the renders' weighted
+//! sums (a stop couples the pixels of a render), t, Welch–Satterthwaite ν, Student's t limit at
+//! half the suite's false-alarm rate (Šidák over the rules), the bias it detects with probability
+//! 0.9, and over the blocks of 6² pixels (the other half, Šidák over rules and blocks) the worst
+//! block's t against its limit and how many blocks exceed theirs.
 //!
 //! `cost`: a render of S samples per pixel in P uniform passes (with everything a target render
 //! does between passes: the error estimate, a preview resolved and encoded as PNG) against the
@@ -366,14 +373,14 @@ fn calibration(o: &Options, scene: &Path) {
     }
 }
 
-/// The image's mean luminance after a render of `settings` from seed `seed`; `stop_below`: stop
-/// after the first pass whose own error estimate is below it (the biased rule).
-fn image_mean(
+/// The image's luminance (row order) after a render of `settings` from seed `seed`;
+/// `stop_below`: stop after the first pass whose own error estimate is below it (the biased rule).
+fn render_luminance(
     loaded: &mut lumis::scene::load::LoadedScene,
     settings: &Settings,
     seed: u64,
     stop_below: Option<f64>,
-) -> f64 {
+) -> Vec<f64> {
     loaded.scene.seed = seed;
     loaded.integrator.preprocess(&loaded.scene);
     let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
@@ -382,22 +389,66 @@ fn image_mean(
         _ => Control::Continue,
     };
     run_passes(loaded, settings, &mut state, 0, &mut stop);
-    let film = state
-        .sums
-        .resolve(&loaded.scene, loaded.integrator.as_ref());
-    let y = luminance(&film);
-    y.iter().sum::<f64>() / y.len() as f64
+    luminance(
+        &state
+            .sums
+            .resolve(&loaded.scene, loaded.integrator.as_ref()),
+    )
 }
 
-fn mean_and_variance_of_mean(values: &[f64]) -> (f64, f64) {
-    let n = values.len() as f64;
-    let m = values.iter().sum::<f64>() / n;
-    let v = values.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    (m, v / n)
+/// The second biased rule, pixel by pixel: a render in passes of `settings` (equal weights) from
+/// seed `seed` in which each pixel keeps the luminance it had after the first pass where its own
+/// relative error estimate, (A − B)² / (A + B)² from its half-images, is below `target` (or its
+/// last, if none is); the render stops once every pixel has.
+fn render_luminance_per_pixel_stop(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    settings: &Settings,
+    seed: u64,
+    target: f64,
+) -> Vec<f64> {
+    loaded.scene.seed = seed;
+    loaded.integrator.preprocess(&loaded.scene);
+    let mut state = RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings);
+    let mut kept: Vec<Option<f64>> = Vec::new();
+    let mut last = Vec::new();
+    run_passes(loaded, settings, &mut state, 0, &mut |state| {
+        let sums = &state.sums;
+        kept.resize(sums.samples.len(), None);
+        last.resize(sums.samples.len(), 0.0);
+        for p in (0..sums.samples.len()).filter(|&p| sums.samples[p] > 0) {
+            let r = sums.row_index(p);
+            last[r] = f64::from(lumis::math::luminance(
+                (sums.color[p] / sums.weight[p]).as_vec3(),
+            ));
+            let [a, b] = sums.halves[p];
+            let estimate = if a + b > 0.0 {
+                ((a - b) / (a + b)).powi(2)
+            } else {
+                0.0
+            };
+            if kept[r].is_none() && estimate < target {
+                kept[r] = Some(last[r]);
+            }
+        }
+        if kept.iter().all(Option::is_some) {
+            Control::Stop
+        } else {
+            Control::Continue
+        }
+    });
+    kept.iter()
+        .zip(&last)
+        .map(|(k, l)| k.unwrap_or(*l))
+        .collect()
 }
+
+/// The samples per pixel of the per-pixel biased rule's passes (of 2 each): pixels whose own
+/// estimate never falls below the target keep their value at this count.
+const PER_PIXEL_CAP: u32 = 1024;
 
 fn bias(o: &Options, scene: &Path) {
-    use lumis::chi2::{FAMILY_FALSE_ALARM, z_limit};
+    use lumis::chi2::{FAMILY_FALSE_ALARM, mean_and_standard_error, sidak};
+    use lumis::same_mean::{Comparison, PixelMeans, Z_POWER_90, blocks, t_limit, weights};
     let mut loaded = load(o, scene, &[format!("sampler.spp={}", o.spp)]);
     let cap = lumis::passes::DEFAULT_MAX_SPP;
     let planned = Settings {
@@ -410,7 +461,7 @@ fn bias(o: &Options, scene: &Path) {
         confidence: o.confidence,
     };
     // Passes of 2 samples with every weight one (each planned for what remains of the cap).
-    let equal = Settings {
+    let equal = |cap: u32| Settings {
         stopping: Stopping::Samples {
             spp: cap,
             passes: cap / 2,
@@ -420,34 +471,90 @@ fn bias(o: &Options, scene: &Path) {
     };
     let plain = Settings::samples(o.spp);
     let r = o.renders as u64;
-    let plain: Vec<f64> = (0..r)
-        .map(|s| image_mean(&mut loaded, &plain, 2_000_000 + s, None))
-        .collect();
-    let planned: Vec<f64> = (0..r)
-        .map(|s| image_mean(&mut loaded, &planned, s, None))
-        .collect();
-    let seen: Vec<f64> = (0..r)
-        .map(|s| image_mean(&mut loaded, &equal, 1_000_000 + s, Some(o.target)))
-        .collect();
-    let (m0, v0) = mean_and_variance_of_mean(&plain);
-    let limit = z_limit(FAMILY_FALSE_ALARM);
-    for (rule, values) in [
-        ("planned weights", &planned),
-        ("equal weights, stop after seeing", &seen),
-    ] {
-        let (m, v) = mean_and_variance_of_mean(values);
-        let se = (v + v0).sqrt() / m0;
-        let relative = m / m0 - 1.0;
+    let mut runs =
+        |render: &mut dyn FnMut(&mut lumis::scene::load::LoadedScene, u64) -> Vec<f64>,
+         first: u64| {
+            PixelMeans::new((first..first + r).map(|s| render(&mut loaded, s)).collect())
+        };
+    // The pilot (for the pixel weights) and the plain renders compared with, seeds disjoint from
+    // each other and from every rule's.
+    let pilot = runs(&mut |l, s| render_luminance(l, &plain, s, None), 3_000_000);
+    let reference = runs(&mut |l, s| render_luminance(l, &plain, s, None), 2_000_000);
+    let rules = [
+        (
+            "planned weights",
+            runs(&mut |l, s| render_luminance(l, &planned, s, None), 0),
+        ),
+        (
+            "equal weights, image stopped after seeing",
+            runs(
+                &mut |l, s| render_luminance(l, &equal(cap), s, Some(o.target)),
+                1_000_000,
+            ),
+        ),
+        (
+            "equal weights, pixels stopped after seeing",
+            runs(
+                &mut |l, s| render_luminance_per_pixel_stop(l, &equal(PER_PIXEL_CAP), s, o.target),
+                4_000_000,
+            ),
+        ),
+    ];
+    // A rule's render spends its samples evenly over the pixels, so its per-pixel variance is
+    // the plain render's scaled by one factor for the whole image: the plain pilot's relative
+    // variances give weights proportional to the rule's own (the scale cancels in δ̂).
+    let weights = weights(&pilot, &pilot, r, r);
+    let blocks = blocks(o.width as usize, o.height as usize);
+    let whole_alpha = sidak(FAMILY_FALSE_ALARM / 2.0, rules.len());
+    let block_alpha = sidak(FAMILY_FALSE_ALARM / 2.0, rules.len() * blocks.len());
+    let image_mean = |images: &PixelMeans| -> Vec<f64> {
+        images
+            .images
+            .iter()
+            .map(|y| y.iter().sum::<f64>() / y.len() as f64)
+            .collect()
+    };
+    let (m0, se0) = mean_and_standard_error(&image_mean(&reference));
+    for (rule, tested) in &rules {
+        // Every rule's stop is one decision for the whole image (or couples its pixels through
+        // the passes' common plan): its pixels are compared as coupled, by the runs' weighted
+        // sums, with runs − 1 degrees of freedom.
+        let comparison = |pixels: &mut dyn Iterator<Item = usize>| {
+            Comparison::new(tested, &reference, &weights, &pilot.mean, pixels, true)
+        };
+        let whole = comparison(&mut (0..tested.mean.len()));
+        let limit = t_limit(whole_alpha, whole.degrees_of_freedom);
+        let (mut worst, mut worst_limit, mut over) = (0.0f64, f64::NAN, 0);
+        for block in &blocks {
+            let c = comparison(&mut block.iter().copied());
+            if c.standard_error.is_nan() {
+                continue; // no pixel of positive variance
+            }
+            let block_limit = t_limit(block_alpha, c.degrees_of_freedom);
+            over += usize::from(c.t().abs() >= block_limit);
+            if c.t().abs() > worst.abs() || worst_limit.is_nan() {
+                (worst, worst_limit) = (c.t(), block_limit);
+            }
+        }
+        let (m, se) = mean_and_standard_error(&image_mean(tested));
+        let image_se = se.hypot(se0) / m0;
         println!(
-            "| {} | {} | {rule} | {} | {:+.4} | {:.4} | {:+.2} | {:.2} | {:.2} % |",
+            "| {} | {} | {rule} | {} | {:+.4} ± {:.4} (z {:+.2}) | {:+.4} | {:.4} | {:+.2} | {:.0} | {:.2} | {:.2} % | {:+.2} / {:.2} | {over} of {} |",
             scene.file_stem().unwrap().to_string_lossy(),
             o.target,
             o.renders,
-            relative,
-            se,
-            relative / se,
+            m / m0 - 1.0,
+            image_se,
+            (m / m0 - 1.0) / image_se,
+            whole.relative_bias,
+            whole.standard_error,
+            whole.t(),
+            whole.degrees_of_freedom,
             limit,
-            100.0 * (limit + 1.281_552) * se
+            100.0 * (limit + Z_POWER_90) * whole.standard_error,
+            worst,
+            worst_limit,
+            blocks.len()
         );
     }
 }
@@ -614,9 +721,9 @@ fn main() {
     }
     if o.mode == "bias" {
         println!(
-            "| scene | target | rule | renders | relative bias | standard error | z | limit | detected with probability 0.9 |"
+            "| scene | target | rule | renders | image mean: relative bias ± se (z) | δ̂ | standard error | t | ν | limit | detected with probability 0.9 | worst block t / limit | blocks over their limit |"
         );
-        println!("|---|---|---|---|---|---|---|---|---|");
+        println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     }
     for scene in &o.scenes {
         match o.mode.as_str() {

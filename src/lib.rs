@@ -13,6 +13,7 @@ pub use lumis_textures as textures;
 mod binary;
 pub mod embedding;
 pub mod import;
+pub mod same_mean;
 pub mod shards;
 pub mod study;
 

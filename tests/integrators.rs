@@ -8,10 +8,11 @@
 use crate::common;
 use common::{integrators, lumis, scene_file};
 use lumis::budgets::Budgets;
-use lumis::chi2::{FAMILY_FALSE_ALARM, sidak, test_seed, z_limit};
+use lumis::chi2::{FAMILY_FALSE_ALARM, sidak, test_seed};
 use lumis::integrators::{alpha, aovs, balance, bsdf, light, mis, variance_aware};
 use lumis::passes::{Settings, Stopping};
 use lumis::progressive::{Control, Ending, RenderState, Scope};
+use lumis::same_mean::{Comparison, PixelMeans, Z_POWER_90, blocks, t_limit, weights};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
@@ -79,20 +80,6 @@ pub(crate) const FEWER_RUNS: Runs = Runs {
     pilot: 8,
     ..RUNS
 };
-/// Side of the square pixel blocks tested on their own (for biases confined to one object).
-const BLOCK: usize = 6;
-/// Power stated (and required) by the same-mean test: the relative bias it detects with
-/// probability at least 90 % is (limit + Φ⁻¹(0.9)) σ(δ̂).
-pub(crate) const Z_POWER_90: f64 = 1.281_551_6;
-
-/// Per-pixel luminance of independent renders: the mean over runs and the variance of that
-/// mean (sample variance over runs / runs), and every run's image.
-struct PixelMeans {
-    mean: Vec<f64>,
-    variance_of_mean: Vec<f64>,
-    runs: u64,
-    images: Vec<Vec<f64>>,
-}
 
 /// Loads the scene once (the seed is read only when rendering, so this equals one load per
 /// seed, without parsing and building the env map's distribution for every run).
@@ -115,9 +102,6 @@ fn pixel_means_rendered(
     seeds: std::ops::Range<u64>,
     in_passes: Option<InPasses>,
 ) -> PixelMeans {
-    let runs = seeds.end - seeds.start;
-    let mut sum: Vec<f64> = Vec::new();
-    let mut sum_sq: Vec<f64> = Vec::new();
     let mut images = Vec::new();
     let strs: Vec<&str> = overrides.iter().map(String::as_str).collect();
     let mut loaded =
@@ -161,171 +145,14 @@ fn pixel_means_rendered(
             "{}: {overrides:?} seed {seed} is not finite",
             path.display()
         );
-        if sum.is_empty() {
-            sum = vec![0.0; film.color.len()];
-            sum_sq = vec![0.0; film.color.len()];
-        }
-        let image: Vec<f64> = film
-            .color
-            .iter()
-            .map(|c| lumis::math::luminance(*c) as f64)
-            .collect();
-        for (i, l) in image.iter().enumerate() {
-            sum[i] += l;
-            sum_sq[i] += l * l;
-        }
-        images.push(image);
+        images.push(
+            film.color
+                .iter()
+                .map(|c| lumis::math::luminance(*c) as f64)
+                .collect(),
+        );
     }
-    let n = runs as f64;
-    let mean: Vec<f64> = sum.iter().map(|s| s / n).collect();
-    let variance_of_mean = sum_sq
-        .iter()
-        .zip(&mean)
-        .map(|(s2, m)| ((s2 - n * m * m) / (n - 1.0)).max(0.0) / n)
-        .collect();
-    PixelMeans {
-        mean,
-        variance_of_mean,
-        runs,
-        images,
-    }
-}
-
-/// The region's weighted sum Σ w x of each run, and the variance of its mean over the runs:
-/// the variance of Σ w x̄ whatever the correlation of the pixels within a render.
-fn run_sums_variance(runs: &PixelMeans, weights: &[f64], pixels: &[usize]) -> f64 {
-    let sums: Vec<f64> = runs
-        .images
-        .iter()
-        .map(|image| pixels.iter().map(|&p| weights[p] * image[p]).sum())
-        .collect();
-    let n = sums.len() as f64;
-    let mean = sums.iter().sum::<f64>() / n;
-    sums.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / ((n - 1.0) * n)
-}
-
-/// The two-sided quantile of Student's t with ν degrees of freedom at false-alarm rate `alpha`,
-/// from the normal one by the Cornish–Fisher expansion (Abramowitz & Stegun 26.7.5; relative
-/// error below 10⁻³ for ν ≥ 10 at the rates used here).
-pub(crate) fn t_limit(alpha: f64, nu: f64) -> f64 {
-    let z = z_limit(alpha);
-    let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
-    z + (z3 + z) / (4.0 * nu)
-        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
-        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
-}
-
-/// The weighted comparison of two sets of runs over a region of pixels: the relative bias
-/// δ̂ = Σ w d / Σ w μ (d the difference of pixel means, μ the pilot's mean, w = μ / σ² from the
-/// pilot, which minimises the variance of δ̂ for a bias proportional to the image), its standard
-/// error, and the Welch–Satterthwaite degrees of freedom of that error. With `coupled` the
-/// pixels of one render may be correlated (a pilot pooled over blocks steers them all): each
-/// side's variance is then that of its runs' weighted sums, with runs − 1 degrees of freedom;
-/// otherwise the pixels are independent and the per-pixel variances add up.
-struct Comparison {
-    relative_bias: f64,
-    standard_error: f64,
-    degrees_of_freedom: f64,
-}
-
-impl Comparison {
-    fn new(
-        tested: &PixelMeans,
-        reference: &PixelMeans,
-        weights: &[f64],
-        pilot_mean: &[f64],
-        pixels: impl Iterator<Item = usize>,
-        coupled: bool,
-    ) -> Self {
-        let (mut num, mut den, mut var, mut var2_over_df) = (0.0, 0.0, 0.0, 0.0);
-        let pixels: Vec<usize> = pixels.filter(|&p| weights[p] != 0.0).collect();
-        for &p in &pixels {
-            let w = weights[p];
-            num += w * (tested.mean[p] - reference.mean[p]);
-            den += w * pilot_mean[p];
-            let (a, b) = (
-                w * w * tested.variance_of_mean[p],
-                w * w * reference.variance_of_mean[p],
-            );
-            var += a + b;
-            var2_over_df += a * a / (tested.runs - 1) as f64 + b * b / (reference.runs - 1) as f64;
-        }
-        if coupled && !pixels.is_empty() {
-            let (a, b) = (
-                run_sums_variance(tested, weights, &pixels),
-                run_sums_variance(reference, weights, &pixels),
-            );
-            var = a + b;
-            var2_over_df = a * a / (tested.runs - 1) as f64 + b * b / (reference.runs - 1) as f64;
-        }
-        Comparison {
-            relative_bias: num / den,
-            standard_error: var.sqrt() / den,
-            degrees_of_freedom: if var2_over_df > 0.0 {
-                var * var / var2_over_df
-            } else {
-                f64::INFINITY
-            },
-        }
-    }
-
-    fn t(&self) -> f64 {
-        if self.standard_error == 0.0 {
-            if self.relative_bias == 0.0 {
-                0.0
-            } else {
-                f64::INFINITY
-            }
-        } else {
-            self.relative_bias / self.standard_error
-        }
-    }
-}
-
-/// Pixel weights w = μ / Var(d) for the comparison of `tested` with the reference, from pilot
-/// runs of both (independent of the compared runs, so the weights need not be exact): with
-/// relative variances r = σ² / μ² of one render, Var(d) = μ² (r_tested / runs + r_reference /
-/// reference_runs). Each r is floored at the lower quartile of its image's, so that a pixel whose
-/// pilot runs happened to agree does not take all the weight. A pixel the tested method's pilot
-/// never lit while the reference's did is a rare event for it (a small light reached by BSDF
-/// sampling alone, say): its mean over the runs is far from normal, and it gets no weight.
-fn weights(
-    reference: &PixelMeans,
-    tested: &PixelMeans,
-    tested_runs: u64,
-    reference_runs: u64,
-) -> Vec<f64> {
-    let relative = |p: &PixelMeans| -> (Vec<f64>, f64) {
-        let r: Vec<f64> = p
-            .mean
-            .iter()
-            .zip(&p.variance_of_mean)
-            .map(|(m, v)| {
-                if *m > 0.0 {
-                    v * p.runs as f64 / (m * m)
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let mut positive: Vec<f64> = r.iter().copied().filter(|r| *r > 0.0).collect();
-        positive.sort_by(f64::total_cmp);
-        let floor = positive.get(positive.len() / 4).copied().unwrap_or(0.0);
-        (r, floor)
-    };
-    let (r_ref, floor_ref) = relative(reference);
-    let (r_tested, floor_tested) = relative(tested);
-    (0..reference.mean.len())
-        .map(|p| {
-            let mu = reference.mean[p];
-            if mu <= 0.0 || r_ref[p] == 0.0 || tested.mean[p] <= 0.0 {
-                return 0.0;
-            }
-            let var = r_tested[p].max(floor_tested) / tested_runs as f64
-                + r_ref[p].max(floor_ref) / reference_runs as f64;
-            1.0 / (mu * var)
-        })
-        .collect()
+    PixelMeans::new(images)
 }
 
 /// Scenes of the same-mean test: diffuse, glossy and mirror surfaces under area, delta, sphere
@@ -392,7 +219,7 @@ fn same_mean_configurations(env_map: bool) -> Vec<(String, Vec<String>)> {
 /// and its variance across independent renders is the estimator's alone. Pixels of zero variance
 /// (directly seen emitters and the environment, no MIS involved) must agree exactly; the others
 /// are compared by the relative bias δ̂ of [`Comparison`] over the whole image and over blocks of
-/// [`BLOCK`]² pixels, against Student's t limits at the family's false-alarm rate (half for the
+/// [`lumis::same_mean::BLOCK`]² pixels, against Student's t limits at the family's false-alarm rate (half for the
 /// whole-image tests, half for the blocks, Šidák within each). The test also requires power: the
 /// whole-image bias it detects with probability 90 % must be at most `detectable` (relative).
 fn same_mean_on_scene(index: usize, spp: u32, detectable: f64, runs: Runs) {
@@ -460,17 +287,7 @@ pub(crate) fn same_mean_rendered(
         &with(balance_type),
         first + 100..first + 100 + counts.reference,
     );
-    let (width, height): (usize, usize) = (24, 18);
-    let blocks: Vec<Vec<usize>> = (0..height.div_ceil(BLOCK))
-        .flat_map(|by| (0..width.div_ceil(BLOCK)).map(move |bx| (bx, by)))
-        .map(|(bx, by)| {
-            (by * BLOCK..((by + 1) * BLOCK).min(height))
-                .flat_map(|y| {
-                    (bx * BLOCK..((bx + 1) * BLOCK).min(width)).map(move |x| y * width + x)
-                })
-                .collect()
-        })
-        .collect();
+    let blocks = blocks(24, 18);
     let whole_alpha = sidak(FAMILY_FALSE_ALARM / 2.0, configurations.len());
     let block_alpha = sidak(
         FAMILY_FALSE_ALARM / 2.0,

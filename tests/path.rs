@@ -612,7 +612,7 @@ fn same_image_mean(
     configurations: &[(String, Vec<String>)],
     detectable: f64,
 ) {
-    use crate::integrators::{Z_POWER_90, t_limit};
+    use lumis::same_mean::{Z_POWER_90, t_limit};
     let first = test_seed() * 1_000_000 + 500_000;
     let reference_means = image_means(file, reference, (spp, passes), first..first + runs);
     let alpha = sidak(FAMILY_FALSE_ALARM, 3 * configurations.len());
@@ -957,9 +957,9 @@ fn sampling_weights_choose_lights_with_the_same_mean() {
     let (m_ref, v_ref) = mean_and_variance_of_mean(&reference);
     let se = (v + v_ref).sqrt();
     let nu = (v + v_ref).powi(2) / ((v * v + v_ref * v_ref) / (runs as f64 - 1.0));
-    let limit = crate::integrators::t_limit(alpha, nu);
+    let limit = lumis::same_mean::t_limit(alpha, nu);
     let t = (m - m_ref) / se;
-    let detected = (limit + crate::integrators::Z_POWER_90) * se / m_ref;
+    let detected = (limit + lumis::same_mean::Z_POWER_90) * se / m_ref;
     eprintln!(
         "sampling_weight 1, 4, 0.25: {m:.5} vs uniform {m_ref:.5} (t = {t:+.2}, limit \
          {limit:.2}); detects {:.2} % with probability 0.9",
@@ -1099,9 +1099,9 @@ fn the_mixture_chooses_lights_by_weight_with_the_same_mean() {
         .collect();
     let (d, se) = common::mean_and_standard_error(&differences);
     let m_ref = reference.iter().map(luminance).sum::<f64>() / runs as f64;
-    let limit = crate::integrators::t_limit(sidak(FAMILY_FALSE_ALARM, 1), runs as f64 - 1.0);
+    let limit = lumis::same_mean::t_limit(sidak(FAMILY_FALSE_ALARM, 1), runs as f64 - 1.0);
     let t = d / se;
-    let detected = (limit + crate::integrators::Z_POWER_90) * se / m_ref;
+    let detected = (limit + lumis::same_mean::Z_POWER_90) * se / m_ref;
     eprintln!(
         "mixture, sampling_weight 1, 4, 0.25 against uniform: difference {d:+.5} of {m_ref:.5} \
          (t = {t:+.2}, limit {limit:.2}); detects {:.2} % with probability 0.9",

@@ -4,13 +4,13 @@
 //! origins, and renders of a transmitting surface against closed forms).
 
 use crate::common::{self, integrators, load, scene_file};
-use crate::integrators::{Z_POWER_90, t_limit};
 use glam::{Vec2, Vec3};
 use lumis::bsdf::{BsdfContext, Side};
 use lumis::chi2::{FAMILY_FALSE_ALARM, sidak, test_seed};
 use lumis::geometry::Ray;
 use lumis::integrators::optimal_mis;
 use lumis::integrators::shading_point::ShadingPoint;
+use lumis::same_mean::{Z_POWER_90, t_limit};
 use lumis::testing::register_test_bsdfs;
 use std::path::Path;
 
