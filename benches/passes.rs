@@ -413,13 +413,10 @@ fn render_luminance_per_pixel_stop(
     let mut last = Vec::new();
     run_passes(loaded, settings, &mut state, 0, &mut |state| {
         let sums = &state.sums;
-        kept.resize(sums.samples.len(), None);
-        last.resize(sums.samples.len(), 0.0);
+        last = luminance(&sums.resolve_color());
+        kept.resize(last.len(), None);
         for p in (0..sums.samples.len()).filter(|&p| sums.samples[p] > 0) {
             let r = sums.row_index(p);
-            last[r] = f64::from(lumis::math::luminance(
-                (sums.color[p] / sums.weight[p]).as_vec3(),
-            ));
             let [a, b] = sums.halves[p];
             let estimate = if a + b > 0.0 {
                 ((a - b) / (a + b)).powi(2)

@@ -432,11 +432,11 @@ fn the_cli_renders_to_a_target_and_refuses_bad_settings() {
 
 /// The extremes: a target of 0 (and one below what f32 resolves) stops at the cap and says so;
 /// a microsecond still closes the render with a last pass and says the time was exceeded (a
-/// millisecond did not: two passes of this 16 × 16 film can finish within it); a
-/// black image shows no error, an unknown error that runs to the cap; a loose target met after
-/// the first pass waits for 16 samples per pixel and is closed by a small last pass; pure BSDF
-/// sampling of a small, very bright light
-/// (fireflies) gives finite pixels and a finite error.
+/// millisecond did not: two passes of this 16 × 16 film can finish within it); a black image
+/// shows no error, an unknown error that runs to the cap; a loose target met after the first
+/// pass still ends at `MIN_SAMPLES_AT_STOP`, closed by a pass as large as the samples before
+/// it; pure BSDF sampling of a small, very bright light (fireflies) gives finite pixels and a
+/// finite error.
 #[test]
 fn the_extremes_of_a_render_in_passes() {
     let (dir, path) = scene_file("scene.ron", SMALL_SCENE);
