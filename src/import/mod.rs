@@ -6,7 +6,9 @@
 //! its file and line, never dropped silently; conventions that differ without changing the
 //! expected image are noted.
 
-mod mitsuba;
+/// The converter, and the parts of its reading its tests check: files' versions and
+/// parameters, property names, paths and spectra.
+pub mod mitsuba;
 
 pub use mitsuba::{Conversion, Problem, Version, convert, convert_file};
 

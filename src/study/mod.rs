@@ -27,10 +27,12 @@ pub mod collect;
 pub mod config;
 mod distributed;
 pub mod metrics;
-mod panel;
+/// The panels of images: renders, their error maps and α.
+pub mod panel;
 pub mod paper;
 pub mod plan;
-mod plots;
+/// The plots of error against time and budget, and their axes.
+pub mod plots;
 pub mod reference;
 pub mod report;
 pub mod stats;

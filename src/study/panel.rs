@@ -13,7 +13,7 @@ use plotters::prelude::*;
 use std::path::Path;
 
 /// ΔE*ab shown as white; the colour ramp runs black → red → yellow → white over [0, this].
-const DELTA_E_WHITE: f64 = 10.0;
+pub const DELTA_E_WHITE: f64 = 10.0;
 const GAP: u32 = 6;
 /// Height of a tile's title, and of a colour key with its labels.
 const TITLE: u32 = 22;
@@ -69,19 +69,22 @@ fn display(c: Rgb, exposure_scale: f32) -> [u8; 3] {
     })
 }
 
-fn heat(delta_e: f64) -> [u8; 3] {
+/// The colour of an error ΔE*ab on the error maps' ramp (black, red, yellow, white at
+/// [`DELTA_E_WHITE`]).
+pub fn heat(delta_e: f64) -> [u8; 3] {
     let t = (delta_e / DELTA_E_WHITE).clamp(0.0, 1.0) * 3.0;
     let channel = |v: f64| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
     [channel(t), channel(t - 1.0), channel(t - 2.0)]
 }
 
-fn alpha_display(alpha: f64) -> [u8; 3] {
+/// The 8-bit colour of α on the α maps ([`alpha_color`]).
+pub fn alpha_display(alpha: f64) -> [u8; 3] {
     alpha_color(alpha).map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
 }
 
 /// The top-left corner of the `cw`×`ch` window with the largest sum of `error` (summed-area
 /// table, positions on an 8-pixel grid).
-fn worst_window(error: &[f64], w: u32, h: u32, cw: u32, ch: u32) -> (u32, u32) {
+pub fn worst_window(error: &[f64], w: u32, h: u32, cw: u32, ch: u32) -> (u32, u32) {
     let (w, h) = (w as usize, h as usize);
     let mut table = vec![0.0f64; (w + 1) * (h + 1)];
     for y in 0..h {
@@ -246,25 +249,4 @@ pub fn write(out: &Path, s: &SceneAnalysis) -> Result<()> {
         canvas.bytes,
     )?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn worst_window_finds_the_error() {
-        let (w, h) = (64, 48);
-        let mut error = vec![0.0; (w * h) as usize];
-        for y in 24..40 {
-            for x in 40..56 {
-                error[(y * w + x) as usize] = 1.0;
-            }
-        }
-        assert_eq!(worst_window(&error, w, h, 16, 16), (40, 24));
-        assert_eq!(heat(0.0), [0, 0, 0]);
-        assert_eq!(heat(DELTA_E_WHITE), [255, 255, 255]);
-        assert_eq!(alpha_display(0.0), [255, 0, 0]);
-        assert_eq!(alpha_display(1.0), [0, 255, 0]);
-    }
 }

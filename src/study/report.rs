@@ -33,7 +33,7 @@ pub fn sig(v: f64) -> String {
 }
 
 /// A number with three significant digits (for intervals).
-fn short(v: f64) -> String {
+pub fn short(v: f64) -> String {
     if !v.is_finite() {
         return "–".into();
     }
@@ -550,8 +550,9 @@ fn summary(
 
 /// How a speed-up known only as a bound (its time more than a factor 2 beyond the ladder's)
 /// is shown: slower or faster than any value the ladder can measure.
-const SLOWER_THAN_BOUND: &str = "< bound";
-const FASTER_THAN_BOUND: &str = "> bound";
+pub const SLOWER_THAN_BOUND: &str = "< bound";
+/// See [`SLOWER_THAN_BOUND`].
+pub const FASTER_THAN_BOUND: &str = "> bound";
 
 /// A speed-up and its interval, or its bound.
 fn speedup_text(r: &Option<Reading>) -> String {
@@ -618,7 +619,7 @@ fn side(r: &Reading) -> Side {
 /// The median of the point estimates and the count of scenes on each side of 1. A speed-up
 /// known only as a bound beyond the ladder ranks as 0 (slower) or ∞ (faster): if the median
 /// falls on one, only its bound is given.
-fn tally(readings: &[Reading]) -> [String; 2] {
+pub fn tally(readings: &[Reading]) -> [String; 2] {
     let mut values: Vec<f64> = readings
         .iter()
         .map(|r| match r.extent {
@@ -1053,48 +1054,4 @@ fn scene_section(
         ),
     )?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn speedup(value: f64, lo: f64, hi: f64, extent: Extent) -> Reading {
-        Reading {
-            estimate: Estimate {
-                value,
-                lo,
-                hi,
-                se: f64::NAN,
-                df: f64::NAN,
-            },
-            extent,
-        }
-    }
-
-    /// Speed-ups known only as bounds count on their side and rank there in the median (leaving
-    /// them out once gave a median of 1.82 for an integrator slower on 5 of 7 scenes).
-    #[test]
-    fn the_tally_ranks_bounds_on_their_side() {
-        let slower_beyond = speedup(0.1, 0.05, 0.2, Extent::Beyond { above: true });
-        let faster_beyond = speedup(9.0, 5.0, 20.0, Extent::Beyond { above: false });
-        let faster = speedup(1.8, 1.6, 2.0, Extent::Within);
-        let not_significant = speedup(1.05, 0.9, 1.2, Extent::Extrapolated);
-        let slower = speedup(0.8, 0.7, 0.9, Extent::Within);
-
-        let [median, counts] =
-            tally(&[slower_beyond, slower_beyond, slower_beyond, faster, faster]);
-        assert_eq!(
-            (median.as_str(), counts.as_str()),
-            (SLOWER_THAN_BOUND, "2 / 0 / 3")
-        );
-        let [median, counts] = tally(&[faster_beyond, faster, not_significant, slower, slower]);
-        assert_eq!((median.as_str(), counts.as_str()), ("1.05", "2 / 1 / 2"));
-        let [median, _] = tally(&[faster_beyond, faster_beyond, faster]);
-        assert_eq!(median, FASTER_THAN_BOUND);
-        // An even count: the geometric mean of the middle two.
-        let [median, _] = tally(&[slower, faster]);
-        assert_eq!(median, short((0.8f64 * 1.8).sqrt()));
-        assert_eq!(tally(&[])[0], "–");
-    }
 }

@@ -38,7 +38,8 @@ impl Blocks {
         self.index[pixel] as usize
     }
 
-    fn sums(&self, values: impl Iterator<Item = f64>) -> Vec<f64> {
+    /// The sums of the pixels' `values` (in pixel order) over each block.
+    pub fn sums(&self, values: impl Iterator<Item = f64>) -> Vec<f64> {
         let mut sums = vec![0.0; self.count];
         for (p, v) in values.enumerate() {
             sums[self.index[p] as usize] += v;
@@ -264,7 +265,7 @@ fn variance_across_runs(
 }
 
 /// The share of a sum of non-negative values held by its largest 0.1 % (at least one).
-fn top_share(mut values: Vec<f64>) -> f64 {
+pub fn top_share(mut values: Vec<f64>) -> f64 {
     let total: f64 = values.iter().sum();
     let n = values.len().div_ceil(1000).max(1);
     if values.is_empty() || total <= 0.0 {
@@ -403,187 +404,4 @@ pub fn median_variance_ratio(
         })
         .collect();
     Jack::global(design, value, &left_out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn blocks_tile_the_image_row_by_row() {
-        let blocks = Blocks::new(5, 3, 2);
-        assert_eq!(blocks.count, 6);
-        assert_eq!(blocks.of(0), 0);
-        assert_eq!(blocks.of(4), 2);
-        assert_eq!(blocks.of(2 * 5), 3);
-        assert_eq!(blocks.of(2 * 5 + 4), 5);
-        let sums = blocks.sums((0..15).map(|_| 1.0));
-        assert_eq!(sums, [4.0, 4.0, 2.0, 2.0, 2.0, 1.0]);
-    }
-
-    /// A normal deviate stream (SplitMix64 and Box–Muller): the coverage test's synthetic
-    /// renders, with no dependency on the renderer's samplers.
-    struct Normal(u64);
-
-    impl Normal {
-        fn uniform(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        }
-
-        fn sample(&mut self) -> f64 {
-            let (u, v) = (self.uniform().max(f64::MIN_POSITIVE), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        }
-    }
-
-    fn seed() -> u64 {
-        std::env::var("LUMIS_TEST_SEED")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(0)
-    }
-
-    /// One synthetic run: each pixel its reference value plus normal noise of the given σ.
-    fn synthetic_run(
-        run: u32,
-        reference: &[f64],
-        sigma: &[f64],
-        normal: &mut Normal,
-        width: u32,
-        height: u32,
-    ) -> CellResult {
-        let color = reference
-            .iter()
-            .zip(sigma)
-            .map(|(&r, &s)| [(r + s * normal.sample()) as f32; 3])
-            .collect();
-        CellResult {
-            cell: crate::study::plan::Cell {
-                scene: 0,
-                role: crate::study::plan::Role::Run {
-                    configuration: 0,
-                    run,
-                },
-                seed: u64::from(run),
-            },
-            width,
-            height,
-            color,
-            channels: Vec::new(),
-            cpu_time: 1.0 + 0.1 * normal.sample().abs(),
-            wall_time: 1.0,
-        }
-    }
-
-    /// Over `trials` synthetic studies of two configurations with known per-pixel variances,
-    /// the fraction of the nominal 95 % intervals that cover the truth, for the ratio of
-    /// relative variances (integrated over pixels: the headline ratio) and for A's relative
-    /// MSE. `highlight` multiplies σ of every 97th pixel of A (a few pixels dominating the sum).
-    fn coverage(trials: usize, runs: u32, highlight: f64, seed: u64) -> (f64, f64) {
-        let (width, height, block) = (48u32, 32u32, 8u32);
-        let pixels = (width * height) as usize;
-        let luminance: Vec<f64> = (0..pixels)
-            .map(|p| 0.05 + 2.0 * ((p * 7919) % 101) as f64 / 101.0)
-            .collect();
-        let reference = Reference {
-            pixels: luminance.iter().map(|&y| Rgb::splat(y as f32)).collect(),
-            luminance: luminance.clone(),
-            variance: vec![0.0; pixels],
-            samples: None,
-            cpu_time: None,
-            path: std::path::PathBuf::from("synthetic"),
-            cached: false,
-        };
-        let context = Context::new(reference, 0.01, block, 1.0, width, height);
-        let reference = context.reference.luminance.clone();
-        let sigma_a: Vec<f64> = (0..pixels)
-            .map(|p| {
-                let boost = if p % 97 == 0 { highlight } else { 1.0 };
-                0.2 * reference[p] * boost
-            })
-            .collect();
-        let sigma_b: Vec<f64> = reference.iter().map(|r| 0.25 * r).collect();
-        let relative = |sigma: &[f64]| -> f64 {
-            sigma
-                .iter()
-                .zip(&context.weights)
-                .map(|(s, w)| s * s * w)
-                .sum::<f64>()
-                / pixels as f64
-        };
-        let true_ratio = relative(&sigma_a) / relative(&sigma_b);
-        let true_mse = relative(&sigma_a);
-        let mut normal = Normal(seed);
-        let (mut ratio_hits, mut mse_hits) = (0, 0);
-        for _ in 0..trials {
-            let summaries = |sigma: &[f64], normal: &mut Normal| -> Vec<RunSummary> {
-                (1..=runs)
-                    .map(|k| {
-                        let cell = synthetic_run(k, &reference, sigma, normal, width, height);
-                        RunSummary::new(&cell, k, &context, false)
-                    })
-                    .collect()
-            };
-            let a = summaries(&sigma_a, &mut normal);
-            let b = summaries(&sigma_b, &mut normal);
-            let a = ConfigurationStats::new(&a.iter().collect::<Vec<_>>(), &context);
-            let b = ConfigurationStats::new(&b.iter().collect::<Vec<_>>(), &context);
-            let ratio = a
-                .relative_variance
-                .ratio(&b.relative_variance)
-                .log_interval();
-            ratio_hits += usize::from(ratio.contains(true_ratio));
-            mse_hits += usize::from(a.relative_mse.interval().contains(true_mse));
-        }
-        let n = trials as f64;
-        (ratio_hits as f64 / n, mse_hits as f64 / n)
-    }
-
-    /// The Wilson score interval of a binomial proportion, at the normal quantile `z`.
-    fn wilson(fraction: f64, trials: usize, z: f64) -> (f64, f64) {
-        let n = trials as f64;
-        let centre = (fraction + z * z / (2.0 * n)) / (1.0 + z * z / n);
-        let half = z / (1.0 + z * z / n)
-            * (fraction * (1.0 - fraction) / n + z * z / (4.0 * n * n)).sqrt();
-        (centre - half, centre + half)
-    }
-
-    /// The intervals' coverage on synthetic data with known variance, over 400 trials of K = 4
-    /// runs of 48×32 pixels in 8×8 blocks, with evenly spread noise and with noise where 1 % of
-    /// the pixels hold most of the variance. Statistics linear in the runs (rel. MSE): the 99 %
-    /// Wilson band of the fraction of nominal 95 % intervals that contain the truth contains
-    /// 0.95 (±2.8 % at 400 trials). Variances across runs: the jackknife is conservative (for
-    /// normal noise its variance is (K − 1)/(K − 2) times too large, docs/study.md), so the
-    /// band must reach 0.95 (never too narrow) and contain no value above the coverage that
-    /// excess predicts, 2Φ(1.96 √1.5) − 1 = 0.984 at K = 4 (not wider than the theory says).
-    #[test]
-    fn nominal_95_percent_intervals_cover_the_truth_as_the_theory_says() {
-        const TRIALS: usize = 400;
-        const Z99: f64 = 2.575_829_3;
-        const PREDICTED_VARIANCE_COVERAGE: f64 = 0.984;
-        for (highlight, what) in [(1.0, "even noise"), (12.0, "highlights")] {
-            let (ratio, mse) = coverage(TRIALS, 4, highlight, seed());
-            let (lo, hi) = wilson(mse, TRIALS, Z99);
-            assert!(
-                lo <= 0.95 && 0.95 <= hi,
-                "{what}, rel. MSE: coverage {mse} over {TRIALS} trials, 99 % band [{lo:.3}, {hi:.3}]"
-            );
-            let (lo, hi) = wilson(ratio, TRIALS, Z99);
-            assert!(
-                hi >= 0.95 && lo <= PREDICTED_VARIANCE_COVERAGE,
-                "{what}, relative variance ratio: coverage {ratio} over {TRIALS} trials, 99 % band [{lo:.3}, {hi:.3}]"
-            );
-        }
-    }
-
-    #[test]
-    fn the_top_share_counts_the_largest_thousandth() {
-        let mut values = vec![1.0; 999];
-        values.push(999.0);
-        assert!((top_share(values) - 0.5).abs() < 1e-12);
-    }
 }

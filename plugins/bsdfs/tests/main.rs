@@ -7,5 +7,7 @@ mod bsdfs;
 mod dielectrics;
 mod evaluation;
 mod glossy_masking;
+mod ior;
 mod materials;
+mod measured;
 mod microfacet;

@@ -6,4 +6,5 @@
 mod area;
 mod delta;
 mod emitters;
+mod envmap;
 mod envmap_bilinear;

@@ -56,7 +56,7 @@ pub fn alpha_color(alpha: f64) -> [f32; 3] {
 /// The sums a pixel keeps of one light over its shading points, in the pixel's f64 sums.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-struct LightSums {
+pub struct LightSums {
     /// Σ α.
     alpha: f64,
     /// The number of shading points.
@@ -76,20 +76,22 @@ struct LightSums {
 /// The BSDF and light samples counted in the pixel, after its lights' sums.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-struct SampleCounts {
-    bsdf: f64,
-    light: f64,
+pub struct SampleCounts {
+    /// BSDF samples.
+    pub bsdf: f64,
+    /// Light samples.
+    pub light: f64,
 }
 
 /// f64 sums per light in a pixel's sums.
 pub const PER_LIGHT: usize = size_of::<LightSums>() / size_of::<f64>();
 /// f64 sums of the sample counts, after the lights'.
-const COUNTS: usize = size_of::<SampleCounts>() / size_of::<f64>();
+pub const COUNTS: usize = size_of::<SampleCounts>() / size_of::<f64>();
 
 /// A pixel's sums (as long as [`AovRequest::pixel_sums`] says) seen as what they hold: one
 /// [`LightSums`] per light, then the [`SampleCounts`]. The same memory, so that the sums still
 /// add as plain f64s.
-fn pixel_sums(sums: &[f64]) -> (&[LightSums], &SampleCounts) {
+pub fn pixel_sums(sums: &[f64]) -> (&[LightSums], &SampleCounts) {
     let (lights, counts) = sums.split_at(sums.len() - COUNTS);
     (
         bytemuck::cast_slice(lights),
@@ -178,13 +180,13 @@ impl LightSums {
     }
 
     /// V[L₁] of the measured phases ([`Y`]), if two samples or more.
-    fn measured_variance(&self) -> Option<f64> {
+    pub fn measured_variance(&self) -> Option<f64> {
         (self.y_count >= 2.0)
             .then(|| ((self.y_sq - self.y * self.y / self.y_count) / (self.y_count - 1.0)).max(0.0))
     }
 
     /// V[L₁] over the counted phases ([`ESTIMATE`]), if any had two samples.
-    fn estimate_variance(&self) -> Option<f64> {
+    pub fn estimate_variance(&self) -> Option<f64> {
         (self.counted_samples > 0.0).then(|| self.counted_variance / self.counted_samples)
     }
 }
@@ -259,7 +261,7 @@ impl AovRequest {
     }
 
     /// Adds light `light`'s estimate at one shading point and its tally to the pixel's sums.
-    pub(crate) fn add(
+    pub fn add(
         &self,
         sums: &mut [f64],
         light: usize,
@@ -340,83 +342,5 @@ impl AovRequest {
             put(counts.bsdf as f32);
             put(counts.light as f32);
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::estimator::SampleRecord;
-    use crate::phase::{PhaseRole, SampleSplit};
-
-    /// Shows the tally a phase of `n_bsdf + n_light` samples whose one-sample estimates Y are
-    /// `values` (grey contributions Y / n).
-    fn observe(tally: &mut LightTally, n_bsdf: u32, values: &[f32], role: PhaseRole) {
-        let split = SampleSplit {
-            n_bsdf,
-            n_light: values.len() as u32 - n_bsdf,
-        };
-        let records = vec![SampleRecord::default(); values.len()];
-        let phase = Phase {
-            role,
-            ..Phase::of(split, &records)
-        };
-        let n = values.len() as f32;
-        let contributions: Vec<Rgb> = values.iter().map(|&y| Rgb::splat(y / n)).collect();
-        tally.observe(&phase, &contributions);
-    }
-
-    fn unbiased_variance(values: &[f64]) -> f64 {
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0)
-    }
-
-    #[test]
-    fn the_estimate_channel_weighs_every_counted_phase_and_the_y_channel_only_the_measured() {
-        let request = AovRequest::from_names(&[SAMPLING_VARIANCE]);
-        let pilot = [1.0f32, 3.0, 2.0, 6.0];
-        let second = [4.0f32, 4.5, 3.5, 5.0, 4.0, 3.0];
-        let ignored = [100.0f32, -50.0];
-        let mut tally = LightTally::default();
-        // A pilot that steers only (neither counted nor measured), then an integrated-α-like
-        // pair: the first phase counted, the second counted and measured.
-        observe(&mut tally, 1, &ignored, PhaseRole::PILOT);
-        let first_role = PhaseRole {
-            counted: true,
-            measured: false,
-        };
-        observe(&mut tally, 2, &pilot, first_role);
-        observe(&mut tally, 5, &second, PhaseRole::ESTIMATE);
-
-        // One light, one shading point: the sums of one pixel.
-        let mut sums = vec![0.0; PER_LIGHT + COUNTS];
-        let estimate = LightEstimate {
-            value: Rgb::ZERO,
-            alpha: 0.5,
-        };
-        request.add(&mut sums, 0, &estimate, &tally);
-        let as_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<_>>();
-        let (v1, v2) = (
-            unbiased_variance(&as_f64(&pilot)),
-            unbiased_variance(&as_f64(&second)),
-        );
-        let paper_basis = (4.0 * v1 + 6.0 * v2) / 10.0;
-        // The pilot that only steers is not counted either.
-        let (lights, counts) = pixel_sums(&sums);
-        assert_eq!((counts.bsdf, counts.light), (7.0, 3.0));
-        // The typed sums are the f64 sums themselves, in order.
-        assert_eq!((sums[PER_LIGHT], sums[PER_LIGHT + 1]), (7.0, 3.0));
-        assert_eq!(sums[..2], [0.5, 1.0], "Σ α and the shading points first");
-
-        let (measured, all) = (
-            lights[0].measured_variance().expect("six measured samples"),
-            lights[0].estimate_variance().expect("ten counted samples"),
-        );
-        assert!((measured - v2).abs() < 1e-9 * v2, "{measured} {v2}");
-        assert!(
-            (all - paper_basis).abs() < 1e-9 * paper_basis,
-            "{all} {paper_basis}"
-        );
     }
 }

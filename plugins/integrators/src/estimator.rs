@@ -53,19 +53,6 @@ pub struct SampleRecord {
     pub delta: bool,
 }
 
-#[cfg(test)]
-impl SampleRecord {
-    /// A non-delta record of grey integrand `f`, for unit tests.
-    pub(crate) fn grey(f: f32, p_bsdf: f32, p_light: f32) -> Self {
-        SampleRecord {
-            f: Rgb::splat(f),
-            p_bsdf,
-            p_light,
-            delta: false,
-        }
-    }
-}
-
 impl SampleRecord {
     /// Whether the sample contributes nothing to this light.
     #[inline]

@@ -78,30 +78,3 @@ pub mod variance_aware;
 /// Referenced by the `lumis` facade so the linker keeps this crate and its registrations.
 #[inline(never)]
 pub fn link() {}
-
-#[cfg(test)]
-mod tests {
-    use lumis_core::registry::{IntegratorPlugin, PluginInfo, builtin};
-
-    /// The methods this file's doc lists, in its list of `- `name`: ...` lines.
-    fn listed_methods() -> Vec<String> {
-        include_str!("lib.rs")
-            .lines()
-            .filter_map(|l| l.strip_prefix("//! - `"))
-            .filter_map(|l| l.split_once("`:"))
-            .map(|(name, _)| name.to_string())
-            .collect()
-    }
-
-    /// The doc lists every registered method, and nothing else.
-    #[test]
-    fn the_crate_doc_lists_every_registered_method() {
-        let mut listed = listed_methods();
-        listed.sort();
-        let registered: Vec<String> = builtin::<IntegratorPlugin>()
-            .iter()
-            .map(|p| p.name().to_string())
-            .collect();
-        assert_eq!(listed, registered, "the list in lib.rs's doc");
-    }
-}

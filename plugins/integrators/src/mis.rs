@@ -229,24 +229,3 @@ impl<M: Method> Integrator for MisIntegrator<M> {
             .resolve(scene, &sums[..self.aovs.pixel_sums(scene)], aovs);
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use lumis_core::registry::find;
-
-    /// N set in a description reaches the plugin's `create` as its `samples`.
-    #[test]
-    fn set_samples_gives_a_plugin_its_n() {
-        // By its name: the plugins import this module, not the reverse.
-        let plugin = find::<IntegratorPlugin>("balance").expect("balance");
-        assert!(takes_samples(plugin));
-        let mut spec = PluginSpec {
-            kind: "balance".into(),
-            params: Default::default(),
-        };
-        set_samples(&mut spec, 7);
-        let mut params = Params::new("balance", plugin.params, spec.params).expect("params");
-        assert_eq!(read_samples(&mut params).expect("samples"), 7);
-    }
-}

@@ -382,7 +382,7 @@ struct LightLists {
 
 /// The running sums of `weights`, or nothing where they are all equal (a uniform choice, whose
 /// arithmetic is the same without `sampling_weight`s as before them).
-fn weights_cdf(weights: impl Iterator<Item = f32> + Clone) -> Vec<f32> {
+pub fn weights_cdf(weights: impl Iterator<Item = f32> + Clone) -> Vec<f32> {
     let mut all = weights.clone();
     let first = all.next();
     if all.all(|w| Some(w) == first) {
@@ -948,7 +948,7 @@ pub fn mixture_density(
 /// uniformly where `cdf` is empty, else in proportion to the lights' `sampling_weight`s
 /// (Mitsuba's), `cdf` their running sums.
 #[inline(always)]
-fn choose_light(cdf: &[f32], u: f32, lights: usize) -> (usize, f32) {
+pub fn choose_light(cdf: &[f32], u: f32, lights: usize) -> (usize, f32) {
     let Some(&total) = cdf.last() else {
         return (
             ((u * lights as f32) as usize).min(lights - 1),
@@ -1140,67 +1140,5 @@ inventory::submit! {
         description: "path tracing with the MIS family's per-light estimator (any weighting, any first-vertex allocation) at every vertex",
         params: PARAMS,
         create,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{choose_light, weights_cdf};
-
-    /// A mixture vertex chooses J among the non-delta lights, and `lights: one` its delta light
-    /// among the delta ones, in proportion to their own `sampling_weight`s: each list's running
-    /// sums are those of its lights' weights, and equal weights (the default) keep the uniform
-    /// choice's arithmetic.
-    #[test]
-    fn each_light_list_chooses_by_its_own_weights() {
-        // Lights 0 and 2 are delta, 1, 3 and 4 are not.
-        let weights = [8.0f32, 1.0, 8.0, 4.0, 0.5];
-        let mixed = [1usize, 3, 4];
-        let cdf = weights_cdf(mixed.iter().map(|&e| weights[e]));
-        assert_eq!(cdf, [1.0, 5.0, 5.5]);
-        let n = 11_000;
-        let mut counts = [0usize; 5];
-        for i in 0..n {
-            let u = (i as f32 + 0.5) / n as f32;
-            counts[mixed[choose_light(&cdf, u, mixed.len()).0]] += 1;
-        }
-        for (count, expected) in counts.iter().zip([0, 2000, 0, 8000, 1000]) {
-            assert!(count.abs_diff(expected) <= 1, "{counts:?}");
-        }
-        let delta = [0usize, 2];
-        assert!(weights_cdf(delta.iter().map(|&e| weights[e])).is_empty());
-        assert!(weights_cdf([3.0f32].into_iter()).is_empty());
-        assert!(weights_cdf(std::iter::empty::<f32>()).is_empty());
-    }
-
-    /// With `sampling_weight`s, each light is chosen with probability w_j / Σ w (over a
-    /// stratified grid of u, exactly up to one stratum), never one of weight 0, and its estimate
-    /// is scaled by Σ w / w_j; without, uniformly (the old rule).
-    #[test]
-    fn lights_are_chosen_in_proportion_to_their_sampling_weight() {
-        let weights = [1.0f32, 0.0, 4.0, 0.5, 0.0];
-        let cdf: Vec<f32> = weights
-            .iter()
-            .scan(0.0, |s, &w| {
-                *s += w;
-                Some(*s)
-            })
-            .collect();
-        let total = cdf[cdf.len() - 1];
-        let n = 100_000;
-        let mut counts = [0usize; 5];
-        for i in 0..n {
-            let u = (i as f32 + 0.5) / n as f32;
-            let (light, inverse) = choose_light(&cdf, u, weights.len());
-            assert!(weights[light] > 0.0, "u {u}: light {light} of weight 0");
-            assert!((inverse - total / weights[light]).abs() <= 1e-5 * inverse);
-            counts[light] += 1;
-        }
-        for (count, w) in counts.iter().zip(weights) {
-            let expected = w / total * n as f32;
-            assert!((*count as f32 - expected).abs() <= 2.0, "{counts:?}");
-        }
-        assert_eq!(choose_light(&cdf, 1.0 - f32::EPSILON / 2.0, 5).0, 3);
-        assert_eq!(choose_light(&[], 0.99, 4), (3, 4.0));
     }
 }

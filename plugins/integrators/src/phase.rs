@@ -112,21 +112,6 @@ impl<'a> Phase<'a> {
     }
 }
 
-#[cfg(test)]
-impl<'a> Phase<'a> {
-    /// A phase of the estimate at pixel (0, 0) of light 0, for the unit tests of weightings
-    /// and observers.
-    pub(crate) fn of(split: SampleSplit, records: &'a [SampleRecord]) -> Self {
-        Phase {
-            pixel: UVec2::ZERO,
-            light: 0,
-            split,
-            role: PhaseRole::ESTIMATE,
-            records,
-        }
-    }
-}
-
 /// Sees every phase it is given, after the weighting, and accumulates what a method needs
 /// (moments for α, statistics for AOVs). One call per phase: an observer loops over the batch.
 pub trait Observer {
@@ -139,22 +124,4 @@ pub trait Observer {
 impl Observer for () {
     #[inline]
     fn observe(&mut self, _phase: &Phase, _contributions: &[Rgb]) {}
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sample_splits_round_and_keep_both_techniques() {
-        let split = |n_bsdf, n_light| SampleSplit { n_bsdf, n_light };
-        assert_eq!(SampleSplit::new(0.5, 256), split(128, 128));
-        assert_eq!(SampleSplit::new(0.025, 16), split(1, 15));
-        assert_eq!(SampleSplit::new(0.975, 16), split(15, 1));
-        assert_eq!(SampleSplit::new(1.0, 16), split(16, 0));
-        assert_eq!(SampleSplit::new(0.0, 16), split(0, 16));
-        assert_eq!(SampleSplit::new(0.3, 1).total(), 1);
-        assert_eq!(SampleSplit::new(0.5, 0), split(0, 0));
-        assert_eq!(SampleSplit::new(0.3, 10).alpha(), 0.3);
-    }
 }

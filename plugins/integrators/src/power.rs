@@ -57,19 +57,3 @@ inventory::submit! {
         create,
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::weighting::{assert_partition_of_unity, assert_small_phases_weigh_as_the_lanes_do};
-
-    #[test]
-    fn weights_are_a_partition_of_unity() {
-        assert_partition_of_unity(&Power);
-    }
-
-    #[test]
-    fn small_phases_weigh_as_the_lanes_do() {
-        assert_small_phases_weigh_as_the_lanes_do(&Power);
-    }
-}

@@ -282,33 +282,3 @@ fn scene_bounds(scene: &Scene) -> (Vec3, Vec3) {
         (Vec3::ZERO, Vec3::ZERO)
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Fixed-point sums are exact: any order of the same terms gives the same bits, negative
-    /// terms and carries included.
-    #[test]
-    fn fixed_sums_do_not_depend_on_order() {
-        let terms: Vec<f64> = (0..2000)
-            .map(|i| ((i * 7919 % 1000) as f64 - 480.0) * 1.37e-3 * (1 + i % 5) as f64)
-            .collect();
-        let forward = FixedSum::default();
-        terms.iter().for_each(|&t| forward.add(t));
-        let backward = FixedSum::default();
-        terms.iter().rev().for_each(|&t| backward.add(t));
-        assert_eq!(forward.value().to_bits(), backward.value().to_bits());
-        let exact: f64 = terms.iter().sum();
-        assert!(
-            (forward.value() - exact).abs() < 1e-6,
-            "{} {exact}",
-            forward.value()
-        );
-        let huge = FixedSum::default();
-        for _ in 0..5000 {
-            huge.add(4.0e6);
-        }
-        assert_eq!(huge.value(), 2.0e10);
-    }
-}

@@ -340,28 +340,3 @@ impl Heuristic for DynHeuristic<'_> {
         self.0.weight4(mine, other)
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A heuristic that only gives `weight` (as a third-party one may) gets `weight4` lane by
-    /// lane; every built-in heuristic overrides it, so only this test reaches the default.
-    #[test]
-    fn the_default_weight4_applies_weight_to_each_lane() {
-        struct Square;
-        impl Heuristic for Square {
-            fn weight(&self, mine: f32, other: f32) -> f32 {
-                mine * mine / (mine * mine + other * other)
-            }
-        }
-        let (mine, other) = (
-            Vec4::new(1.0, 2.0, 0.5, 7.0),
-            Vec4::new(3.0, 1.0, 0.25, 0.0),
-        );
-        let lanes = Square.weight4(mine, other).to_array();
-        for (i, lane) in lanes.into_iter().enumerate() {
-            assert_eq!(lane, Square.weight(mine[i], other[i]), "lane {i}");
-        }
-    }
-}

@@ -37,7 +37,8 @@ impl Version {
         self < Version(2, 0, 0)
     }
 
-    fn parse(text: &str) -> Option<Version> {
+    /// A `version` attribute's value (`3.0` is 3.0.0); `None` if it is not one.
+    pub fn parse(text: &str) -> Option<Version> {
         let mut parts = text.trim().split('.').map(|p| p.parse::<u32>().ok());
         let major = parts.next()??;
         let minor = parts.next().unwrap_or(Some(0))?;
@@ -319,10 +320,7 @@ impl Sources {
 /// eat into `$spp2`); a `$` left over is an undefined parameter. `\$` is a literal `$`, as in
 /// Mitsuba 3 (measured on 3.9.1: `x\$a` reads `x$a` with `a` defined, and `x\\$a` reads
 /// `x\$a`: only the backslash before a `$` is an escape).
-pub(super) fn substitute(
-    raw: &str,
-    parameters: &BTreeMap<String, String>,
-) -> Result<String, String> {
+pub fn substitute(raw: &str, parameters: &BTreeMap<String, String>) -> Result<String, String> {
     if !raw.contains('$') {
         return Ok(raw.to_string());
     }
@@ -369,38 +367,4 @@ pub(super) fn find(places: &[PathBuf], name: &str) -> Option<PathBuf> {
 /// system can say so).
 fn canonical(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn versions_parse_and_order() {
-        assert_eq!(Version::parse("0.5.0"), Some(Version(0, 5, 0)));
-        assert_eq!(Version::parse("3.0"), Some(Version(3, 0, 0)));
-        assert_eq!(Version::parse("x"), None);
-        assert!(Version(0, 6, 0).is_legacy() && !Version(2, 0, 0).is_legacy());
-    }
-
-    #[test]
-    fn parameters_substitute_longest_first() {
-        let p = BTreeMap::from([
-            ("spp".to_string(), "4".to_string()),
-            ("spp2".to_string(), "8".to_string()),
-        ]);
-        assert_eq!(substitute("$spp2 $spp", &p).unwrap(), "8 4");
-        assert!(substitute("$nope", &p).unwrap_err().contains("$nope"));
-    }
-
-    /// `\$` is a literal `$` and only a backslash before a `$` is an escape, as Mitsuba 3.9.1
-    /// reads them (its outputs for these four values, with `a` defined as `ONE`).
-    #[test]
-    fn a_backslash_escapes_a_dollar_as_in_mitsuba() {
-        let p = BTreeMap::from([("a".to_string(), "ONE".to_string())]);
-        assert_eq!(substitute(r"x\$a.obj", &p).unwrap(), "x$a.obj");
-        assert_eq!(substitute(r"x\\$a.obj", &p).unwrap(), r"x\$a.obj");
-        assert_eq!(substitute(r"x$a\$a", &p).unwrap(), "xONE$a");
-        assert!(substitute(r"\$a $b", &p).unwrap_err().contains("$b"));
-    }
 }

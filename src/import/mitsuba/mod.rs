@@ -18,13 +18,17 @@
 mod bsdf;
 mod dielectric;
 mod emitter;
-mod files;
+/// The main file and its includes, versions, and `$name` parameters.
+pub mod files;
 mod integrator;
-mod paths;
-mod properties;
+/// File names rewritten for the RON scene's folder.
+pub mod paths;
+/// Attributes and properties, and the names of files older than Mitsuba 2.
+pub mod properties;
 mod sensor;
 mod shape;
-pub(crate) mod spectrum;
+/// Spectra to RGB, as Mitsuba's RGB variants make them.
+pub mod spectrum;
 mod transform;
 
 pub use files::Version;

@@ -32,7 +32,7 @@ fn normal(p: &Path) -> Vec<Component<'_>> {
 
 /// `target` relative to the directory `base` (both made absolute, `.` and `..` resolved
 /// lexically).
-fn relative_path(target: &Path, base: &Path) -> PathBuf {
+pub fn relative_path(target: &Path, base: &Path) -> PathBuf {
     // The folder of a bare file name (`-o scene.ron`) is the empty path: the current one.
     let base = if base.as_os_str().is_empty() {
         Path::new(".")
@@ -53,27 +53,4 @@ fn relative_path(target: &Path, base: &Path) -> PathBuf {
         out.push(c.as_os_str());
     }
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn relative_paths_climb_to_the_common_directory() {
-        assert_eq!(
-            relative_path(Path::new("/a/b/meshes/x.obj"), Path::new("/a/c")),
-            PathBuf::from("../b/meshes/x.obj")
-        );
-        // An output given as a bare file name: its folder is the empty path.
-        let here = std::env::current_dir().unwrap();
-        assert_eq!(
-            relative_path(&here.join("./meshes/x.obj"), Path::new("")),
-            PathBuf::from("meshes/x.obj")
-        );
-        assert_eq!(
-            relative_path(Path::new("/a/./b/../x.obj"), Path::new("/a")),
-            PathBuf::from("x.obj")
-        );
-    }
 }

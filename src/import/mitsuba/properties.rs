@@ -123,7 +123,7 @@ pub(super) struct Properties<'a, 'input> {
 /// Mitsuba 3's `upgrade_from_v1` name for a property of a file older than 2.0: camelCase to
 /// snake_case (a capital after a lower-case letter starts a word; the capitals right after it
 /// join that word: `intIOR` is `int_ior`).
-pub(super) fn snake_case(name: &str) -> String {
+pub fn snake_case(name: &str) -> String {
     let chars: Vec<char> = name.chars().collect();
     let mut out = String::with_capacity(name.len() + 4);
     let mut i = 0;
@@ -146,7 +146,7 @@ pub(super) fn snake_case(name: &str) -> String {
 
 /// A property name as Mitsuba 3 reads it from a file of `version` inside a plugin of type
 /// `kind`.
-fn upgraded_name(name: &str, kind: &str, version: Version) -> String {
+pub fn upgraded_name(name: &str, kind: &str, version: Version) -> String {
     if !version.is_legacy() {
         return name.to_string();
     }
@@ -475,39 +475,5 @@ impl Properties<'_, '_> {
                 );
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Mitsuba 3's `camel_to_underscore_case` on the names 0.x scenes use.
-    #[test]
-    fn legacy_names_become_snake_case_as_mitsuba_makes_them() {
-        for (old, new) in [
-            ("toWorld", "to_world"),
-            ("intIOR", "int_ior"),
-            ("extIOR", "ext_ior"),
-            ("sampleCount", "sample_count"),
-            ("fovAxis", "fov_axis"),
-            ("specularReflectance", "specular_reflectance"),
-            ("maxDepth", "max_depth"),
-            ("alphaU", "alpha_u"),
-            ("already_snake", "already_snake"),
-            ("UPPER", "UPPER"),
-        ] {
-            assert_eq!(snake_case(old), new, "{old}");
-        }
-        let legacy = Version(0, 5, 0);
-        assert_eq!(
-            upgraded_name("diffuseReflectance", "diffuse", legacy),
-            "reflectance"
-        );
-        assert_eq!(
-            upgraded_name("diffuseReflectance", "plastic", legacy),
-            "diffuse_reflectance"
-        );
-        assert_eq!(upgraded_name("toWorld", "obj", Version(3, 0, 0)), "toWorld");
     }
 }

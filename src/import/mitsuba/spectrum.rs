@@ -82,7 +82,8 @@ pub fn to_rgb(spectrum: &Spectrum, emitter: bool) -> [f64; 3] {
 
 const CIE_MIN: f64 = 360.0;
 const CIE_MAX: f64 = 830.0;
-const CIE_SAMPLES: usize = 95;
+/// Rows of [`CIE`]: every 5 nm from 360 to 830 nm.
+pub const CIE_SAMPLES: usize = 95;
 /// 1 / ∫ȳ over the table (Mitsuba's `MI_CIE_Y_NORMALIZATION`).
 const CIE_Y_NORMALIZATION: f64 = 1.0 / 106.750_259_399_414_06;
 /// Makes D65 integrate to a luminance of 1 (Mitsuba's `MI_CIE_D65_NORMALIZATION`).
@@ -90,7 +91,7 @@ const D65_NORMALIZATION: f64 = 1.0 / 98.997_417_518_762_55;
 
 /// x̄, ȳ, z̄ and D65 (relative power, 100 at 560 nm) every 5 nm from 360 to 830 nm.
 #[rustfmt::skip]
-const CIE: [[f32; 4]; CIE_SAMPLES] = [
+pub const CIE: [[f32; 4]; CIE_SAMPLES] = [
     [0.0001299, 3.917e-06, 0.0006061, 46.6383], // 360 nm
     [0.0002321, 6.965e-06, 0.001086, 49.3637], // 365 nm
     [0.0004149, 1.239e-05, 0.001946, 52.0891], // 370 nm
@@ -249,66 +250,5 @@ fn sampled_to_srgb(wavelengths: &[f64], values: &[f64], bounded: bool, d65: bool
         rgb.map(|c| c.clamp(0.0, 1.0))
     } else {
         rgb.map(|c| c.max(0.0))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Values Mitsuba 3.9.1's loader gives (`scalar_rgb`, printed to 6 digits: a `diffuse`
-    /// reflectance through `mi.traverse`, a `constant` emitter's `eval`): reflectances bounded
-    /// and under D65, emitters unbounded and without it. Mitsuba sums in f32, lumis in f64:
-    /// they agree within 5·10⁻⁶.
-    #[test]
-    fn spectra_become_the_colours_mitsuba_gives_them() {
-        let s = parse("400:0.1, 500:0.5 600:0.9, 700:0.3").unwrap();
-        let close = |a: [f64; 3], b: [f64; 3]| {
-            a.iter()
-                .zip(b)
-                .all(|(x, y)| (x - y).abs() <= 5e-6 * y.abs().max(1.0))
-        };
-        let reflectance = to_rgb(&s, false);
-        assert!(
-            close(reflectance, [0.854797, 0.68754, 0.265015]),
-            "{reflectance:?}"
-        );
-        let emission = to_rgb(&s, true);
-        assert!(
-            close(emission, [0.999234, 0.6597, 0.229444]),
-            "{emission:?}"
-        );
-        let flat = parse("300:1 900:1").unwrap();
-        assert!(close(to_rgb(&flat, true), [1.20488, 0.948228, 0.909267]));
-        assert!(close(to_rgb(&flat, false), [0.998985, 0.998874, 0.998802]));
-        // A uniform spectrum: grey on a reflectance, D65's complement on an emitter.
-        assert_eq!(to_rgb(&Spectrum::Uniform(0.5), false), [0.5; 3]);
-        let white = to_rgb(&Spectrum::Uniform(2.0), true);
-        assert!(
-            close(white, [2.0 * 1.20479, 2.0 * 0.948291, 2.0 * 0.908916]),
-            "{white:?}"
-        );
-    }
-
-    #[test]
-    fn malformed_spectra_are_refused_with_the_reason() {
-        assert!(parse("500:1").unwrap_err().contains("at least two"));
-        assert!(parse("600:1, 500:2").unwrap_err().contains("must increase"));
-        assert!(parse("500:1, 500:2").unwrap_err().contains("must increase"));
-        assert!(
-            parse("500:x, 600:1")
-                .unwrap_err()
-                .contains("not a finite number")
-        );
-        assert!(parse("1 2").unwrap_err().contains("pair"));
-        assert_eq!(parse(" 0.25 ").unwrap(), Spectrum::Uniform(0.25));
-    }
-
-    /// The tables are the CIE's: ȳ peaks at 1 at 555 nm, D65 is 100 at 560 nm.
-    #[test]
-    fn the_tables_are_the_cie_s() {
-        let at = |nm: usize| CIE[(nm - 360) / 5];
-        assert_eq!(at(555)[1], 1.0);
-        assert_eq!(at(560)[3], 100.0);
     }
 }

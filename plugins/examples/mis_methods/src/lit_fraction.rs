@@ -128,16 +128,3 @@ inventory::submit! {
         create,
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn alpha_follows_the_lit_counts_within_the_clamp() {
-        assert_eq!(LitCounts::default().alpha(), 0.5);
-        assert_eq!(LitCounts { bsdf: 3, light: 1 }.alpha(), 4.0 / 6.0);
-        assert_eq!(LitCounts { bsdf: 0, light: 40 }.alpha(), 0.1);
-        assert_eq!(LitCounts { bsdf: 40, light: 0 }.alpha(), 0.9);
-    }
-}

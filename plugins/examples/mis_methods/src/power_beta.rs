@@ -69,30 +69,3 @@ inventory::submit! {
         create,
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use lumis_integrators::weighting::{
-        Balance, assert_partition_of_unity, assert_small_phases_weigh_as_the_lanes_do,
-    };
-
-    #[test]
-    fn weights_are_a_partition_of_unity() {
-        for beta in [0.5, 1.0, 2.0, 3.0, 16.0] {
-            assert_partition_of_unity(&PowerBeta { beta });
-            assert_small_phases_weigh_as_the_lanes_do(&PowerBeta { beta });
-        }
-    }
-
-    #[test]
-    fn beta_one_is_the_balance_heuristic() {
-        for (mine, other) in [(1.0, 3.0), (0.25, 0.5), (7.0, 1e-3)] {
-            let (a, b) = (
-                PowerBeta { beta: 1.0 }.weight(mine, other),
-                Balance.weight(mine, other),
-            );
-            assert!((a - b).abs() <= 1e-6, "{mine} {other}: {a} vs {b}");
-        }
-    }
-}

@@ -1,0 +1,7 @@
+//! The textures' tests, in one test binary (`cargo test -p lumis-textures --test textures`;
+//! `-- bitmap::` runs one module's tests). Discovery of `tests/*.rs` is off
+//! (`autotests = false`), so a new test file must be declared here; the root package's
+//! `every_test_file_is_a_module` fails until it is.
+
+mod bitmap;
+mod checkerboard;
