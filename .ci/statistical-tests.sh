@@ -12,9 +12,11 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 # One group per line: cargo's target selection, then `--`, then test-name filters (none: the
-# whole binary, all of whose tests take the seed).
+# whole binary, all of whose tests take the seed). lumis-core's unit tests (the only library
+# with any) run under `--tests`, which selects the libraries whose `[lib] test` is on; `--lib`
+# would build every library as a test, those that have none too.
 groups=(
-    "--lib -- chi2:: testing:: filter::tests:: passes::tests::planned_weights error_estimate::tests::the_relative_error error_estimate::tests::the_conservative_nu budgets::tests::"
+    "--tests -- chi2:: testing:: filter::tests:: passes::tests::planned_weights error_estimate::tests::the_relative_error error_estimate::tests::the_conservative_nu budgets::tests::"
     "--test sampling"
     "--test bsdfs"
     "--test emitters -- emitters:: envmap_bilinear:: envmap::compensated"
