@@ -132,22 +132,18 @@ fn turns_about_any_axis_carry_directions_as_the_rotation_does() {
 #[test]
 fn mapping_follows_the_documented_convention() {
     let m = map(0.0);
-    assert!(
-        m.to_direction(Vec2::new(0.5, 0.5))
-            .abs_diff_eq(-Vec3::Z, 1e-6)
-    );
-    assert!(
-        m.to_direction(Vec2::new(0.0, 0.5))
-            .abs_diff_eq(Vec3::Z, 1e-6)
-    );
-    assert!(
-        m.to_direction(Vec2::new(0.25, 0.5))
-            .abs_diff_eq(-Vec3::X, 1e-6)
-    );
-    assert!(
-        m.to_direction(Vec2::new(0.3, 0.0))
-            .abs_diff_eq(Vec3::Y, 1e-6)
-    );
+    for (uv, expected) in [
+        (Vec2::new(0.5, 0.5), -Vec3::Z),
+        (Vec2::new(0.0, 0.5), Vec3::Z),
+        (Vec2::new(0.25, 0.5), -Vec3::X),
+        (Vec2::new(0.3, 0.0), Vec3::Y),
+    ] {
+        let d = m.to_direction(uv);
+        assert!(
+            d.abs_diff_eq(expected, 1e-6),
+            "{uv} gives {d}, not {expected}"
+        );
+    }
     // Mitsuba's orientation: centre toward +z, first quarter toward +x.
     let settings = MapSettings {
         orientation: Orientation::Mitsuba,
