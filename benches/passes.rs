@@ -6,7 +6,7 @@
 //! cargo bench --bench passes -- bias [--renders R] [--size WxH] [--samples N] [--target E]
 //!     [--spp S] SCENE...
 //! cargo bench --bench passes -- cost [--runs K] [--size WxH] [--samples N] [--spp S]
-//!     [--passes P] SCENE...
+//!     [--passes P[,P…]] [--raw FILE] SCENE...
 //! cargo bench --bench passes -- dump [--renders R] [--size WxH] [--samples N] [--spp S] SCENE...
 //! ```
 //!
@@ -35,9 +35,13 @@
 //!
 //! `cost`: a render of S samples per pixel in P uniform passes (with everything a target render
 //! does between passes: the error estimate, a preview resolved and encoded as PNG) against the
-//! one-pass render of the same samples, K interleaved pairs on one thread; the images are the
-//! same bit for bit. Prints the ratio of the medians of CPU time and the 95 % interval of the
-//! mean of the pairs' log ratios.
+//! one-pass render of the same samples, for each P listed, in K interleaved rounds on one thread
+//! (each round renders the one-pass render and every P once, in an order that changes from
+//! round to round); the images are the same bit for bit. Prints, per P, the ratio of the medians
+//! of CPU time, the mean of the rounds' log ratios with its normal 95 % interval, and the
+//! Hodges–Lehmann estimate (the median of the log ratios' Walsh averages) with its Wilcoxon
+//! signed-rank 95 % interval, which a few rounds slowed by other tenants of the machine move
+//! less than they move the mean. `--raw FILE` writes every round's CPU times as CSV.
 //!
 //! `dump`: R renders of S spp in passes of 2, each pixel's half-images written after 8, 16, …
 //! spp (`dump`'s comment says where), for trying error estimators offline against the reference.
@@ -59,7 +63,8 @@ struct Options {
     confidence: f64,
     reference_spp: u32,
     spp: u32,
-    passes: u32,
+    passes: Vec<u32>,
+    raw: Option<PathBuf>,
     scenes: Vec<PathBuf>,
 }
 
@@ -84,7 +89,8 @@ fn options() -> Result<Options, String> {
         confidence: 0.95,
         reference_spp: 16384,
         spp: 64,
-        passes: 8,
+        passes: vec![8],
+        raw: None,
         scenes: Vec::new(),
     };
     let mut args = std::env::args().skip(1);
@@ -111,7 +117,13 @@ fn options() -> Result<Options, String> {
             "--confidence" => o.confidence = number(&arg, value(&arg)?)?,
             "--reference-spp" => o.reference_spp = number(&arg, value(&arg)?)? as u32,
             "--spp" => o.spp = number(&arg, value(&arg)?)? as u32,
-            "--passes" => o.passes = number(&arg, value(&arg)?)? as u32,
+            "--passes" => {
+                o.passes = value(&arg)?
+                    .split(',')
+                    .map(|p| number("--passes", p.into()).map(|p| p as u32))
+                    .collect::<Result<_, _>>()?
+            }
+            "--raw" => o.raw = Some(PathBuf::from(value(&arg)?)),
             flag if flag.starts_with("--") => return Err(format!("unknown option {flag}")),
             word if o.mode.is_empty() => o.mode = word.to_string(),
             scene => o.scenes.push(from_repository(scene)),
@@ -561,24 +573,32 @@ fn cost(o: &Options, scene: &Path) {
     loaded.integrator.preprocess(&loaded.scene);
     let dir = tempfile::tempdir().expect("a temporary directory");
     let preview = dir.path().join("preview.exr");
-    let settings = Settings {
-        stopping: Stopping::Samples {
-            spp: o.spp,
-            passes: o.passes,
-        },
-        ..Settings::samples(o.spp)
-    };
-    let (mut plain, mut passes, mut logs) = (Vec::new(), Vec::new(), Vec::new());
+    // Contender 0 is the one-pass render, contender k the render in `o.passes[k - 1]` passes.
+    let contenders = o.passes.len() + 1;
+    let mut times = vec![Vec::with_capacity(o.renders); contenders];
+    let mut order: Vec<usize> = (0..contenders).collect();
     for run in 0..o.renders {
-        // Interleaved, the order alternating.
-        let mut times = [0.0; 2];
-        for which in if run % 2 == 0 { [0, 1] } else { [1, 0] } {
+        // Each round in the next rotation of the contenders, reversed every other round, so
+        // that none is always first or always after the same one.
+        order.rotate_left(1);
+        let mut round = order.clone();
+        if run % 2 == 1 {
+            round.reverse();
+        }
+        for &which in &round {
             let start = cpu_time();
             let film = if which == 0 {
                 lumis::render::render(&loaded.scene, loaded.integrator.as_ref(), 1, &|_| {})
                     .expect("render")
                     .0
             } else {
+                let settings = Settings {
+                    stopping: Stopping::Samples {
+                        spp: o.spp,
+                        passes: o.passes[which - 1],
+                    },
+                    ..Settings::samples(o.spp)
+                };
                 let mut state =
                     RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings);
                 run_passes(&mut loaded, &settings, &mut state, 1, &mut |state| {
@@ -590,34 +610,82 @@ fn cost(o: &Options, scene: &Path) {
                     .sums
                     .resolve(&loaded.scene, loaded.integrator.as_ref())
             };
-            times[which] = cpu_time() - start;
+            times[which].push(cpu_time() - start);
             std::hint::black_box(film);
         }
-        plain.push(times[0]);
-        passes.push(times[1]);
-        logs.push((times[1] / times[0]).ln());
     }
-    let median = |v: &mut Vec<f64>| {
+    if let Some(raw) = &o.raw {
+        let mut csv = String::from("round,one_pass");
+        for p in &o.passes {
+            csv += &format!(",passes_{p}");
+        }
+        for run in 0..o.renders {
+            csv += &format!("\n{run}");
+            for t in &times {
+                csv += &format!(",{:.6}", t[run]);
+            }
+        }
+        std::fs::write(raw, csv + "\n").expect("the raw times written");
+    }
+    let median = |v: &[f64]| {
+        let mut v = v.to_vec();
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
-    let n = logs.len() as f64;
-    let mean = logs.iter().sum::<f64>() / n;
-    let sd = (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-    let half = 1.96 * sd / n.sqrt();
-    println!(
-        "{}: {} spp in {} passes against one pass, {} pairs on one thread: medians {:.4} s and {:.4} s, ratio of the medians {:.4}; mean log ratio gives {:.4} [{:.4}, {:.4}]",
-        scene.display(),
-        o.spp,
-        o.passes,
-        o.renders,
-        median(&mut passes),
-        median(&mut plain),
-        passes[passes.len() / 2] / plain[plain.len() / 2],
-        mean.exp(),
-        (mean - half).exp(),
-        (mean + half).exp()
-    );
+    for (k, passes) in o.passes.iter().enumerate() {
+        let logs: Vec<f64> = times[k + 1]
+            .iter()
+            .zip(&times[0])
+            .map(|(p, one)| (p / one).ln())
+            .collect();
+        let n = logs.len() as f64;
+        let mean = logs.iter().sum::<f64>() / n;
+        let sd = (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let (low, high) = (mean - 1.96 * sd / n.sqrt(), mean + 1.96 * sd / n.sqrt());
+        let (hl, hl_low, hl_high) = hodges_lehmann(&logs);
+        println!(
+            "{}: {} spp in {passes} passes against one pass, {} rounds on one thread: medians {:.4} s and {:.4} s, ratio of the medians {:.4}; mean log ratio {:.4} [{:.4}, {:.4}]; Hodges-Lehmann {:.4} [{:.4}, {:.4}]",
+            scene.display(),
+            o.spp,
+            o.renders,
+            median(&times[k + 1]),
+            median(&times[0]),
+            median(&times[k + 1]) / median(&times[0]),
+            mean.exp(),
+            low.exp(),
+            high.exp(),
+            hl.exp(),
+            hl_low.exp(),
+            hl_high.exp(),
+        );
+    }
+}
+
+/// The Hodges–Lehmann estimate of the centre of `x` (the median of the Walsh averages
+/// (x_i + x_j)/2, i ≤ j) with the 95 % interval that inverts Wilcoxon's signed-rank test (normal
+/// approximation to its critical rank, fine from a few dozen values on): (estimate, low, high).
+fn hodges_lehmann(x: &[f64]) -> (f64, f64, f64) {
+    let n = x.len();
+    let mut walsh = Vec::with_capacity(n * (n + 1) / 2);
+    for i in 0..n {
+        for j in i..n {
+            walsh.push(0.5 * (x[i] + x[j]));
+        }
+    }
+    walsh.sort_by(f64::total_cmp);
+    let m = walsh.len();
+    let nf = n as f64;
+    let spread = (nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0).sqrt();
+    let k = ((nf * (nf + 1.0) / 4.0 - 1.959_964 * spread)
+        .floor()
+        .max(0.0) as usize)
+        .min(m - 1);
+    let centre = if m % 2 == 1 {
+        walsh[m / 2]
+    } else {
+        0.5 * (walsh[m / 2 - 1] + walsh[m / 2])
+    };
+    (centre, walsh[k], walsh[m - 1 - k])
 }
 
 /// Per seed, after each pass ending at a power of two from 8 spp on (passes of 2 samples, every
