@@ -15,7 +15,7 @@ use exr::prelude::{
 };
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 /// An output file could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -273,6 +273,40 @@ pub fn linear_to_srgb(v: f32) -> f32 {
     }
 }
 
+/// The 8-bit sRGB value of a linear value, clamped to [0, 1] (NaN is 0):
+/// `(linear_to_srgb(v) * 255 + 0.5) as u8`, looked up among the 255 linear values where that
+/// byte steps up rather than computed, because one `powf` per channel was the largest part of
+/// writing a render's preview after each pass.
+pub fn srgb_byte(v: f32) -> u8 {
+    static STEPS: OnceLock<[f32; 255]> = OnceLock::new();
+    let steps = STEPS.get_or_init(|| std::array::from_fn(|k| least_with_byte_above(k as u8)));
+    // The steps at or below v, counted by halving without branches (a branch would be
+    // mispredicted at every other pixel of an image).
+    let mut below = 0;
+    for half in [128, 64, 32, 16, 8, 4, 2, 1] {
+        below += usize::from(steps[below + half - 1] <= v) * half;
+    }
+    below as u8
+}
+
+/// The least value in [0, 1] whose sRGB byte is above `k` (`k` < 255): a bisection over the
+/// bits of the non-negative floats, which order as their values do. The bytes rise with the
+/// value (the transfer function is increasing), so below it every byte is at most `k`.
+fn least_with_byte_above(k: u8) -> f32 {
+    let byte = |bits: u32| (linear_to_srgb(f32::from_bits(bits)) * 255.0 + 0.5) as u8;
+    // byte(low) <= k < byte(high) throughout.
+    let (mut low, mut high) = (0.0f32.to_bits(), 1.0f32.to_bits());
+    while high - low > 1 {
+        let middle = low + (high - low) / 2;
+        if byte(middle) > k {
+            high = middle;
+        } else {
+            low = middle;
+        }
+    }
+    f32::from_bits(high)
+}
+
 /// Writes the colour as an 8-bit sRGB PNG, scaled by 2^exposure and clamped.
 pub fn write_png(film: &Film, path: &Path, exposure: f32) -> Result<(), OutputError> {
     write_atomically(path, png_writer(film, exposure))
@@ -289,7 +323,7 @@ pub fn png_writer(film: &Film, exposure: f32) -> FileWriter<'_> {
             .flat_map(|c| c.to_array())
             .map(|v| {
                 let v = if v.is_finite() { v * scale } else { 0.0 };
-                (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
+                srgb_byte(v)
             })
             .collect();
         encode_png(file, w, h, bytes)
@@ -571,6 +605,26 @@ mod tests {
             image.write().to_buffered(&mut bytes).unwrap();
         }
         bytes.into_inner()
+    }
+
+    /// The looked-up sRGB byte is the computed one: at every value near a step (four floats
+    /// either side), at 2^20 values spread over the floats of [0, 1], and out of range.
+    #[test]
+    fn srgb_bytes_are_looked_up_as_computed() {
+        let computed = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
+        let one = 1.0f32.to_bits();
+        let near_steps = (0..255u8).flat_map(|k| {
+            let step = least_with_byte_above(k).to_bits();
+            (step.saturating_sub(4)..=(step + 4).min(one)).map(f32::from_bits)
+        });
+        let spread = (0..=one).step_by((one >> 20) as usize).map(f32::from_bits);
+        for v in near_steps
+            .chain(spread)
+            .chain([0.0, -0.0, 1.0, -1.0, 2.0, f32::MAX])
+        {
+            assert_eq!(srgb_byte(v), computed(v), "at {v:e}");
+        }
+        assert_eq!(srgb_byte(f32::NAN), 0);
     }
 
     /// A PNG decodes to the bytes it was given; a buffer of the wrong size is refused.

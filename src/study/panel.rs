@@ -6,7 +6,7 @@
 use super::collect::SceneAnalysis;
 use super::metrics;
 use anyhow::Result;
-use lumis_core::image_io::{linear_to_srgb, write_rgb8_png};
+use lumis_core::image_io::{srgb_byte, write_rgb8_png};
 use lumis_core::math::Rgb;
 use lumis_integrators::aovs::alpha_color;
 use plotters::prelude::*;
@@ -65,7 +65,7 @@ fn display(c: Rgb, exposure_scale: f32) -> [u8; 3] {
         } else {
             0.0
         };
-        (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
+        srgb_byte(v)
     })
 }
 

@@ -147,13 +147,7 @@ fn reaches_light(
 ) -> Reached {
     let emitter = scene.emitters[light].as_ref();
     if scene.environment == Some(light) {
-        if scene.geometry.occluded_by_others(ray, None, Some(from)) {
-            return Reached::Nothing;
-        }
-        // Only for a ray that escapes: its lookup is deferred to the end of the phase, after
-        // the light samples, which leaves the read time to arrive.
-        emitter.prefetch(ray.direction);
-        return Reached::Environment;
+        return reaches_environment(scene, light, ray, from);
     }
     let Some(shape) = light_shape else {
         return Reached::Nothing;
@@ -167,6 +161,21 @@ fn reaches_light(
     };
     let hit = emitter_hit(scene, ray, &first);
     Reached::Surface(hit, emitter.eval(ray.direction, Some(&hit)))
+}
+
+/// [`reaches_light`] for the environment light: whether anything blocks the ray. Kept out of
+/// `reaches_light`, which an area light's samples run through: the any-hit traversal inlined
+/// there made it six times larger, and the render's hot code no longer fit the instruction
+/// cache as well.
+#[inline(never)]
+fn reaches_environment(scene: &Scene, light: usize, ray: &Ray, from: &Intersection) -> Reached {
+    if scene.geometry.occluded_by_others(ray, None, Some(from)) {
+        return Reached::Nothing;
+    }
+    // Only for a ray that escapes: its lookup is deferred to the end of the phase, after the
+    // light samples, which leaves the read time to arrive.
+    scene.emitters[light].prefetch(ray.direction);
+    Reached::Environment
 }
 
 /// What a BSDF-sampled ray that was traced to its closest surface, `hit` (`None`: it left the
