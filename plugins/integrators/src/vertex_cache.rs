@@ -18,11 +18,21 @@
 //! Sums are fixed-point integers added atomically ([`FixedSum`]): an integer sum does not
 //! depend on the order of its terms, so the frozen α, and the image, are the same bit for bit
 //! for any number of threads; no lock is taken on the per-sample path.
+//!
+//! A pass adds to its own sums; `freeze` adds them to the sums of the passes before and reads
+//! α from those. So the cache between passes is what `freeze` made (the *frozen* part: the
+//! earlier passes' sums, α, the guiding fraction's θ and Adam moments) and what the last pass
+//! added: [`VertexCache::save`] writes both, apart, for a state or shard file; the shards of a
+//! pass share the frozen part and [`merge`] adds what each added, into what one process that
+//! rendered every shard's tiles would hold, bit for bit.
 
 use glam::Vec3;
 use lumis_core::geometry::ShapeGeometry;
 use lumis_core::scene::Scene;
 use std::sync::atomic::{AtomicU64, Ordering};
+
+mod state;
+pub use state::merge;
 
 /// The α a mixture vertex may take: the paper's defensive clamp, which also keeps BSDF
 /// sampling, the only technique that finds indirect light, in every mixture.
@@ -83,15 +93,33 @@ impl FixedSum {
 
     /// The sum (read between passes, when no thread adds).
     pub fn value(&self) -> f64 {
-        let bits = ((self.high.load(Ordering::Relaxed) as u128) << 64)
-            | self.low.load(Ordering::Relaxed) as u128;
-        bits as i128 as f64 * (2f64).powi(-FRACTION_BITS)
+        fixed_value(self.bits())
     }
 
-    fn clear(&self) {
-        self.low.store(0, Ordering::Relaxed);
-        self.high.store(0, Ordering::Relaxed);
+    /// The sum as the fixed-point integer it is.
+    fn bits(&self) -> i128 {
+        (((self.high.load(Ordering::Relaxed) as u128) << 64)
+            | self.low.load(Ordering::Relaxed) as u128) as i128
     }
+
+    fn set(&self, bits: i128) {
+        self.low.store(bits as u128 as u64, Ordering::Relaxed);
+        self.high
+            .store((bits as u128 >> 64) as u64, Ordering::Relaxed);
+    }
+
+    /// The sum's integer, the sum restarting from zero.
+    fn take(&mut self) -> i128 {
+        let bits = (((*self.high.get_mut() as u128) << 64) | *self.low.get_mut() as u128) as i128;
+        *self.low.get_mut() = 0;
+        *self.high.get_mut() = 0;
+        bits
+    }
+}
+
+/// The real number a fixed-point integer stands for.
+fn fixed_value(bits: i128) -> f64 {
+    bits as f64 * (2f64).powi(-FRACTION_BITS)
 }
 
 /// What one mixture sample tells its cell.
@@ -109,12 +137,21 @@ pub struct MixtureSample {
 /// The cache: statistics added during a pass, α frozen for it.
 pub struct VertexCache {
     learning: Learning,
-    /// The scene's bounding box's corner and cells per unit length.
+    /// Cells along the scene's longest side, the scene's bounding box's corner and cells per
+    /// unit length.
+    resolution: u32,
     origin: Vec3,
     cells_per_unit: f32,
-    /// Per slot: the learning's sums ([`ALPHA_GRID`]'s second moments, or one gradient sum).
+    /// Every α before it is learned.
+    initial: f64,
+    /// Per slot, added to during a pass: the learning's sums ([`ALPHA_GRID`]'s second moments,
+    /// or one gradient sum) and the samples.
     sums: Vec<FixedSum>,
     counts: Vec<AtomicU64>,
+    /// The same of the passes before, kept by `freeze` (a cell of the guiding fraction keeps
+    /// them until it has [`MIN_SAMPLES`]).
+    frozen_sums: Vec<i128>,
+    frozen_counts: Vec<u64>,
     /// Per slot, read during a pass: α, and the guiding fraction's θ and Adam moments.
     alpha: Vec<f32>,
     theta: Vec<f64>,
@@ -135,13 +172,17 @@ impl VertexCache {
         };
         let per_slot = terms(learning);
         let initial = initial.clamp(ALPHA_MIN, ALPHA_MAX);
-        let theta = (initial / (1.0 - initial)).ln();
+        let theta = state::initial_theta(initial);
         VertexCache {
             learning,
+            resolution,
             origin: lo,
             cells_per_unit,
+            initial,
             sums: (0..SLOTS * per_slot).map(|_| FixedSum::default()).collect(),
             counts: (0..SLOTS).map(|_| AtomicU64::new(0)).collect(),
+            frozen_sums: vec![0; SLOTS * per_slot],
+            frozen_counts: vec![0; SLOTS],
             alpha: vec![initial as f32; SLOTS],
             theta: vec![theta; SLOTS],
             adam: vec![(0.0, 0.0); SLOTS],
@@ -201,21 +242,30 @@ impl VertexCache {
     }
 
     /// Between passes: each cell's α from everything added so far (the second moment: every
-    /// pass; the guiding fraction: one Adam step along the last pass's mean gradient, whose
-    /// sums then restart).
+    /// pass; the guiding fraction: one Adam step along the mean gradient since its last step,
+    /// whose sums then restart).
     pub fn freeze(&mut self) {
         self.steps += 1;
+        let terms = terms(self.learning);
         for slot in 0..SLOTS {
-            let count = *self.counts[slot].get_mut();
+            let base = slot * terms;
+            let added = std::mem::take(self.counts[slot].get_mut());
+            self.frozen_counts[slot] = self.frozen_counts[slot].saturating_add(added);
+            for (frozen, sum) in self.frozen_sums[base..base + terms]
+                .iter_mut()
+                .zip(&mut self.sums[base..base + terms])
+            {
+                *frozen = frozen.wrapping_add(sum.take());
+            }
+            let count = self.frozen_counts[slot];
             if count < MIN_SAMPLES {
                 continue;
             }
-            let base = slot * terms(self.learning);
             match self.learning {
                 Learning::SecondMoment => {
                     let mut best = (f64::INFINITY, 0.5);
                     for (i, &alpha) in ALPHA_GRID.iter().enumerate() {
-                        let m = self.sums[base + i].value();
+                        let m = fixed_value(self.frozen_sums[base + i]);
                         if m < best.0 {
                             best = (m, alpha);
                         }
@@ -226,9 +276,9 @@ impl VertexCache {
                     }
                 }
                 Learning::GuidingFraction => {
-                    let gradient = self.sums[base].value() / count as f64;
-                    self.sums[base].clear();
-                    *self.counts[slot].get_mut() = 0;
+                    let gradient = fixed_value(self.frozen_sums[base]) / count as f64;
+                    self.frozen_sums[base] = 0;
+                    self.frozen_counts[slot] = 0;
                     let (m, v) = &mut self.adam[slot];
                     *m = ADAM_BETA1 * *m + (1.0 - ADAM_BETA1) * gradient;
                     *v = ADAM_BETA2 * *v + (1.0 - ADAM_BETA2) * gradient * gradient;
