@@ -61,6 +61,12 @@ impl Writer {
         values.iter().for_each(|&v| self.u32(v));
     }
 
+    /// Length-prefixed bytes.
+    pub fn bytes(&mut self, values: &[u8]) {
+        self.u64(values.len() as u64);
+        self.bytes.extend_from_slice(values);
+    }
+
     /// Writes the file atomically (creating its directory).
     pub fn write(self, path: &Path) -> Result<()> {
         let bytes = self.bytes;
@@ -177,6 +183,11 @@ impl Reader {
         Ok(b.chunks_exact(4)
             .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
             .collect())
+    }
+
+    pub fn bytes(&mut self, field: &str) -> Result<Vec<u8>> {
+        let n = self.length(1, field)?;
+        Ok(self.take(n, field)?.to_vec())
     }
 
     /// Checks that every byte was read.

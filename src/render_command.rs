@@ -321,7 +321,14 @@ fn resumed_state(
         );
     }
     // An interrupt drops the pass cut short of a render with per-pixel budgets (each pass is
-    // decided from the whole image's sums before it), so its state has none.
+    // decided from the whole image's sums before it), or of one that learns beyond the sums,
+    // so its state has none.
+    if !file.state.learned.is_empty() && file.state.current.is_some() {
+        bail!(
+            "`{}` holds part of a pass of a render whose integrator learns from its passes: it cannot be resumed. Render it again",
+            path.display()
+        );
+    }
     if file.budgets != Budgets::Uniform && file.state.current.is_some() {
         bail!(
             "`{}` holds part of a pass of a render with --budgets {}, whose passes are decided from the whole image's sums before them: it cannot be resumed. Render it again",
@@ -337,6 +344,23 @@ fn resumed_state(
         );
     }
     Ok(file.state)
+}
+
+/// Gives the integrator back what it learned in the passes of `state`, resumed from `file`.
+fn restore_learned(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    state: &RenderState,
+    file: Option<&Path>,
+) -> Result<()> {
+    loaded
+        .integrator
+        .restore_learned_state(&state.learned)
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "`{}` cannot continue: {e}",
+                file.map_or("the state".into(), |f| f.display().to_string())
+            )
+        })
 }
 
 /// The command that resumes this render from `state`: the arguments given, with `--resume`.
@@ -717,6 +741,7 @@ fn render_in_passes(
         None => RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings),
     };
     loaded.integrator.preprocess(&loaded.scene);
+    restore_learned(&mut loaded, &state, args.resume.as_deref())?;
     let window = loaded.scene.window;
     let pixels = window.width as u64 * window.height as u64;
     let bar = progress_bar(args.quiet, pixels)?;
@@ -947,6 +972,7 @@ fn render_shard(
                 stopped: Some(Stop::Samples),
             },
             current: None,
+            learned: Vec::new(),
         },
     };
     file.write(&path)?;
@@ -993,6 +1019,7 @@ fn render_shard_pass(
         None => RenderState::new(&loaded.scene, loaded.integrator.as_ref(), settings),
     };
     loaded.integrator.preprocess(&loaded.scene);
+    restore_learned(&mut loaded, &state, args.resume.as_deref())?;
     let cancel = interrupt::install().context("cannot install the Ctrl-C handler")?;
     let outcome = lumis::progressive::run(
         &loaded.scene,

@@ -6,8 +6,9 @@
 //!
 //! A file holds the render's state ([`RenderState`]: per pixel of the window the camera samples
 //! summed, Σ u·colour, Σ u and the half-images (f64), the integrator's own sums (f64); the passes
-//! so far and a pass cut short), what the render was asked for ([`Settings`]) and what is needed
-//! to rebuild the integrator that resolves it: the scene file and the overrides of the render.
+//! so far and a pass cut short; what the integrator learned beyond the sums, as its bytes), what
+//! the render was asked for ([`Settings`]) and what is needed to rebuild the integrator that
+//! resolves it: the scene file and the overrides of the render.
 
 use crate::binary::{Reader, Writer};
 use anyhow::{Context, Result, bail};
@@ -22,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 const MAGIC: &[u8; 8] = b"LUMISSHD";
-const VERSION: u32 = 3;
+const VERSION: u32 = 4;
 const WHAT: &str = "render shard";
 
 /// One shard of a render, or a whole render's state, as written by `lumis render --shard` and
@@ -243,6 +244,7 @@ impl ShardFile {
             }
             None => w.u32(0),
         }
+        w.bytes(&self.state.learned);
         w.write(path)
             .with_context(|| format!("cannot write the shard `{}`", path.display()))
     }
@@ -341,6 +343,7 @@ impl ShardFile {
         } else {
             None
         };
+        let learned = r.bytes("what the integrator learned")?;
         r.finish()?;
         Ok(ShardFile {
             scene_name,
@@ -374,6 +377,7 @@ impl ShardFile {
                     stopped,
                 },
                 current,
+                learned,
             },
         })
     }
@@ -555,6 +559,15 @@ pub fn merge(paths: &[PathBuf], output: Option<&Path>, state: Option<&Path>) -> 
             "the scene `{}` has changed since the shards were rendered (its film or integrator differs)",
             first.scene_path.display()
         );
+    }
+    // The cache of a learned α and the like: what every shard learned in the pass, added to
+    // what they learned from the passes before (the same in every shard).
+    for (shard, path) in shards.iter().zip(paths).skip(1) {
+        merged.learned = integrator
+            .merge_learned_states(&merged.learned, &shard.state.learned)
+            .map_err(|e| {
+                anyhow::anyhow!("`{}` and `{}`: {e}", first_path.display(), path.display())
+            })?;
     }
     let film = sums.resolve(scene, integrator);
     let total = |f: fn(&RenderStats) -> u64| shards.iter().map(|s| f(&s.stats)).sum::<u64>();

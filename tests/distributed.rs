@@ -1,11 +1,15 @@
 //! Work split over processes (docs/distributed.md): a render's shards merge into the
-//! one-process render bit for bit in any shard count; a study planned into cells, run cell by
+//! one-process render bit for bit in any shard count, pass by pass too, with what the
+//! integrator learned across passes (`path`'s cache of α); a study planned into cells, run cell by
 //! cell (in any order) and collected reports what the local study reports, names its missing
 //! and failed cells, and takes the cell index from the environment of an array job.
 
 use crate::common;
 
 use common::lumis;
+use lumis::budgets::Budgets;
+use lumis::passes::{Settings, Stopping};
+use lumis::progressive::{Control, Ending, RenderState, Scope};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -367,4 +371,301 @@ fn a_planned_study_collects_to_the_local_report_and_names_missing_and_failed_cel
         md.contains("Made by `lumis study cornell.ron") && !md.contains("--plan"),
         "the report quotes the local command"
     );
+}
+
+/// Renders the passes of `state` that `settings` plan, at most `max_passes`, as `scope` says,
+/// raising the cancel after `cancel_at` tiles; `on_pass` sees the state after each pass.
+fn run_passes(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    state: &mut RenderState,
+    settings: &Settings,
+    scope: Scope,
+    cancel_at: Option<u64>,
+    on_pass: &mut dyn FnMut(&RenderState) -> Control,
+) -> lumis::progressive::Outcome {
+    let tiles = std::sync::atomic::AtomicU64::new(0);
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        settings,
+        state,
+        scope,
+        &cancel,
+        &|_| {
+            let done = tiles.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            if Some(done) == cancel_at {
+                cancel.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        },
+        on_pass,
+    )
+    .expect("render")
+}
+
+/// `path`'s world-space cache of α (`deep_allocation` "learned" and "guiding_fraction") travels
+/// in state and shard files. A render of the Cornell box in 3 passes (3 tiles each) stopped
+/// after pass 1 and continued from its saved state by a new integrator (and by `lumis render
+/// --resume`, and as a shard's pass of the command line); cut short in pass 2 (the pass dropped
+/// with what the cache learned in it) and continued; or rendered as 2 and 3 shards merged pass
+/// by pass (each merged state the one-process state, cache included): each gives the
+/// one-process image bit for bit, and continued with an empty cache it does not, so the cache
+/// is seen to travel. A saved cache of another resolution or learning, a truncated one,
+/// and one in an integrator without a cache are refused naming the problem; caches frozen from
+/// different passes do not merge.
+#[test]
+fn the_path_cache_of_alpha_resumes_and_shards_into_one_image() {
+    use lumis::integrators::path as path_plugin;
+    use lumis::render::Shard;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    let scene = repo().join("scenes/cornell.ron");
+    let overrides = |deep: &str, resolution: u32| -> Vec<String> {
+        let mut set = vec![
+            "film.width=48".to_string(),
+            "film.height=16".to_string(),
+            "sampler.jitter=false".to_string(),
+            "sampler.spp=6".to_string(),
+            format!("integrator=(type: {:?})", path_plugin::NAME),
+        ];
+        set.extend(
+            [
+                format!("{}=4", path_plugin::MAX_DEPTH),
+                format!("{}={deep:?}", path_plugin::DEEP_ALLOCATION),
+                format!("{}={resolution}", path_plugin::CACHE_RESOLUTION),
+            ]
+            .map(|s| format!("integrator.{s}")),
+        );
+        set
+    };
+    let load = |set: &[String]| {
+        let set: Vec<&str> = set.iter().map(String::as_str).collect();
+        let mut loaded = common::load(&scene, &set).expect("scene");
+        loaded.integrator.preprocess(&loaded.scene);
+        loaded
+    };
+    let settings = Settings {
+        stopping: Stopping::Samples { spp: 6, passes: 3 },
+        ..Settings::samples(6)
+    };
+    let file = |set: &[String], shard, stats, state: &RenderState| lumis::shards::ShardFile {
+        scene_name: "cornell".into(),
+        scene_path: scene.clone(),
+        scene_hash: lumis::shards::file_hash(&scene).expect("the scene's hash"),
+        overrides: set.to_vec(),
+        exposure: 0.0,
+        shard,
+        stats,
+        settings: settings.clone(),
+        budgets: Budgets::Uniform,
+        state: state.clone(),
+    };
+    let mut second_moment_cache = Vec::new();
+    for mode in [path_plugin::LEARNED, path_plugin::GUIDING_FRACTION] {
+        let set = overrides(mode, 4);
+        let mut whole_loaded = load(&set);
+        let fresh = |loaded: &lumis::scene::load::LoadedScene| {
+            RenderState::new(&loaded.scene, loaded.integrator.as_ref(), &settings)
+        };
+        let mut whole = fresh(&whole_loaded);
+        let mut after = Vec::new();
+        let outcome = run_passes(
+            &mut whole_loaded,
+            &mut whole,
+            &settings,
+            Scope::whole(2),
+            None,
+            &mut |state| {
+                after.push(state.clone());
+                Control::Continue
+            },
+        );
+        assert_eq!(outcome.ending, Ending::Complete);
+        assert!(after.iter().all(|s| !s.learned.is_empty()), "{mode}");
+        let image = d.join(format!("{mode}.exr"));
+        let film = whole
+            .sums
+            .resolve(&whole_loaded.scene, whole_loaded.integrator.as_ref());
+        lumis::render_files::write(&film, &image, 0.0, &Vec::new()).unwrap();
+        let channels = |f: &Path| lumis::image_io::read_exr_channels(f).unwrap();
+
+        // Stopped after pass 1, saved, read back and continued by a new integrator.
+        let mut first = load(&set);
+        let mut state = fresh(&first);
+        let one = Scope {
+            max_passes: Some(1),
+            ..Scope::whole(2)
+        };
+        let stats = run_passes(&mut first, &mut state, &settings, one, None, &mut |_| {
+            Control::Continue
+        })
+        .stats;
+        let saved = d.join(format!("{mode}.lshard"));
+        file(&set, Shard::WHOLE, stats, &state)
+            .write(&saved)
+            .unwrap();
+        let state = lumis::shards::ShardFile::read(&saved).unwrap().state;
+        let mut resumed = state.clone();
+        let mut second = load(&set);
+        second
+            .integrator
+            .restore_learned_state(&resumed.learned)
+            .unwrap();
+        let continued = |loaded: &mut _, state: &mut RenderState| {
+            run_passes(loaded, state, &settings, Scope::whole(2), None, &mut |_| {
+                Control::Continue
+            })
+            .ending
+        };
+        assert_eq!(continued(&mut second, &mut resumed), Ending::Complete);
+        assert!(
+            resumed.sums == whole.sums,
+            "{mode}: the resumed render differs"
+        );
+        // The command line continues it so too: `--resume` in one process, and a shard's pass.
+        let command_line = |extra: &[&str]| {
+            let mut args = vec!["render", scene.to_str().unwrap(), "-q", "--passes", "3"];
+            for s in &set {
+                args.extend(["--set", s.as_str()]);
+            }
+            args.extend(extra);
+            lumis(d, &args)
+        };
+        let resumed_image = d.join(format!("{mode}-resumed.exr"));
+        let saved_arg = saved.to_str().unwrap();
+        let out = command_line(&["--resume", saved_arg, "-o", resumed_image.to_str().unwrap()]);
+        ok(&out, "the resumed render");
+        assert!(
+            channels(&resumed_image) == channels(&image),
+            "{mode}: `lumis render --resume` differs"
+        );
+        let part = d.join(format!("{mode}-part.lshard"));
+        let out = command_line(&[
+            "--resume",
+            saved_arg,
+            "--shard",
+            "0/1",
+            "-o",
+            part.to_str().unwrap(),
+        ]);
+        ok(&out, "a shard's pass");
+        let part = lumis::shards::ShardFile::read(&part).unwrap().state;
+        assert!(
+            part.sums == after[1].sums && part.learned == after[1].learned,
+            "{mode}: `lumis render --shard --resume` differs"
+        );
+        let mut forgetful = state.clone();
+        forgetful.learned.clear();
+        continued(&mut load(&set), &mut forgetful);
+        assert!(
+            forgetful.sums != whole.sums,
+            "{mode}: an empty cache gives the same image: the test shows nothing"
+        );
+
+        // Cut short in the middle of pass 2 (one thread: the tiles in order).
+        let mut cut_loaded = load(&set);
+        let mut cut = fresh(&cut_loaded);
+        let outcome = run_passes(
+            &mut cut_loaded,
+            &mut cut,
+            &settings,
+            Scope::whole(1),
+            Some(4),
+            &mut |_| Control::Continue,
+        );
+        assert_eq!(outcome.ending, Ending::Interrupted);
+        assert!(cut.current.is_none() && cut.history.passes.len() == 1);
+        assert!(cut.sums == after[0].sums && cut.learned == after[0].learned);
+        assert_eq!(continued(&mut cut_loaded, &mut cut), Ending::Complete);
+        assert!(
+            cut.sums == whole.sums,
+            "{mode}: the render cut short differs"
+        );
+
+        // Shards, pass by pass from the merged state.
+        for count in [2, 3] {
+            let merged_state = d.join(format!("{mode}-{count}.lshard"));
+            let merged_image = d.join(format!("{mode}-{count}.exr"));
+            for (pass, expected) in after.iter().enumerate() {
+                let mut parts = Vec::new();
+                for index in 0..count {
+                    let shard = Shard { index, count };
+                    let mut loaded = load(&set);
+                    let mut state = if pass == 0 {
+                        fresh(&loaded)
+                    } else {
+                        let state = lumis::shards::ShardFile::read(&merged_state).unwrap().state;
+                        loaded
+                            .integrator
+                            .restore_learned_state(&state.learned)
+                            .unwrap();
+                        state
+                    };
+                    let scope = Scope { shard, ..one };
+                    let stats =
+                        run_passes(&mut loaded, &mut state, &settings, scope, None, &mut |_| {
+                            Control::Continue
+                        })
+                        .stats;
+                    state.sums.retain_tiles(|t| shard.has(t));
+                    let part = d.join(format!("{mode}-{index}-of-{count}.lshard"));
+                    file(&set, shard, stats, &state).write(&part).unwrap();
+                    parts.push(part);
+                }
+                let merged = lumis::shards::merge(
+                    &parts,
+                    Some(merged_image.as_path()),
+                    Some(merged_state.as_path()),
+                )
+                .unwrap();
+                if pass < 2 {
+                    let state = lumis::shards::ShardFile::read(&merged_state).unwrap().state;
+                    assert!(
+                        state.sums == expected.sums && state.learned == expected.learned,
+                        "{mode}, {count} shards: the state merged after pass {pass} differs"
+                    );
+                } else {
+                    assert!(merged.state.is_none());
+                }
+            }
+            assert!(
+                channels(&merged_image) == channels(&image),
+                "{mode}: {count} shards merged differ from the one-process render"
+            );
+        }
+
+        // Caches that cannot continue this render, or merge.
+        let learned = &after[0].learned;
+        let error = |set: &[String], bytes: &[u8]| {
+            load(set)
+                .integrator
+                .restore_learned_state(bytes)
+                .expect_err("a foreign cache restored")
+        };
+        let e = error(&overrides(mode, 8), learned);
+        assert!(
+            e.contains("a resolution of 4 cells") && e.contains("this render's 8"),
+            "{e}"
+        );
+        let e = error(&set, &learned[..learned.len() - 1]);
+        assert!(e.contains("truncated"), "{e}");
+        // The fixed mixture takes no `cache_resolution`.
+        let mut mixture = overrides(path_plugin::MIXTURE, 4);
+        mixture.pop();
+        let e = error(&mixture, learned);
+        assert!(e.contains("learns no α across passes"), "{e}");
+        let e = whole_loaded
+            .integrator
+            .merge_learned_states(learned, &after[1].learned)
+            .expect_err("caches of two passes merged");
+        assert!(e.contains("frozen from different passes"), "{e}");
+        if mode == path_plugin::LEARNED {
+            second_moment_cache = learned.clone();
+        }
+    }
+    let e = load(&overrides(path_plugin::GUIDING_FRACTION, 4))
+        .integrator
+        .restore_learned_state(&second_moment_cache)
+        .expect_err("a cache of another learning restored");
+    assert!(e.contains("learns the second moment"), "{e}");
 }

@@ -607,7 +607,7 @@ fn resuming_refuses_another_render_and_damaged_files() {
     std::fs::write(d.join("old.lshard"), old).unwrap();
     for (file, expected) in [
         ("short.lshard", "truncated"),
-        ("old.lshard", "format 1; this lumis reads format 3"),
+        ("old.lshard", "format 1; this lumis reads format 4"),
         ("scene.ron", "is not a lumis render shard file"),
         ("none.lshard", "cannot read"),
     ] {

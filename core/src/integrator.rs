@@ -187,6 +187,37 @@ pub trait Integrator: Send + Sync {
     /// it decides for the pass must depend on these only (docs/integrators.md, "Passes").
     fn begin_pass(&mut self, _scene: &Scene, _pass: &crate::passes::PassContext<'_>) {}
 
+    /// What the integrator learned from the passes so far that the pixels' sums do not hold
+    /// (`path`'s world-space cache of α), as bytes for a render's state and shard files
+    /// ([`crate::progressive::RenderState::learned`]; read between passes): empty, the
+    /// default, when it learns nothing of its own.
+    fn learned_state(&self) -> Vec<u8> {
+        Vec::new()
+    }
+
+    /// Continues from `state`, which [`learned_state`](Self::learned_state) wrote for the same
+    /// configuration and scene, after [`preprocess`](Self::preprocess); empty: nothing learned
+    /// yet. A state it cannot continue from is refused, naming what differs, and leaves the
+    /// integrator as it was.
+    fn restore_learned_state(&mut self, state: &[u8]) -> Result<(), String> {
+        if state.is_empty() {
+            Ok(())
+        } else {
+            Err("this integrator learns nothing across passes, but the state holds what one learned".into())
+        }
+    }
+
+    /// The learned states `a` and `b` of two shards of one pass (or merges of shards), both
+    /// resumed from one state, as one: what one process that rendered both's tiles would have
+    /// learned, bit for bit; a mismatch is refused, naming it.
+    fn merge_learned_states(&self, a: &[u8], b: &[u8]) -> Result<Vec<u8>, String> {
+        if a.is_empty() && b.is_empty() {
+            Ok(Vec::new())
+        } else {
+            Err("this integrator learns nothing across passes, but the shards hold what one learned".into())
+        }
+    }
+
     /// Shades one camera sample: returns its radiance estimate and *adds* its statistics to
     /// `sums`, the pixel's `pixel_sums` sums so far (all zero before its first sample). It must
     /// only add: core may shade a pixel's samples in parts and add the parts' sums.

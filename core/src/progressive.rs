@@ -3,10 +3,10 @@
 //! renders the pass on the film's sums ([`render::render_pass`]), estimates the image's error
 //! ([`error_estimate::estimate`]) and reports to the caller, who may stop it.
 //!
-//! The state between passes ([`RenderState`]: the sums, the passes so far and a pass cut short)
-//! is all a render is: saved after an interrupt, it resumes into the image the render would have
-//! given without one; saved by shards after each pass, it merges into the one-process state
-//! (docs/distributed.md).
+//! The state between passes ([`RenderState`]: the sums, the passes so far, a pass cut short and
+//! what the integrator learned beyond the sums) is all a render is: saved after an interrupt, it
+//! resumes into the image the render would have given without one; saved by shards after each
+//! pass, it merges into the one-process state (docs/distributed.md).
 
 use crate::budgets::{self, Budgets};
 use crate::error_estimate;
@@ -26,6 +26,11 @@ pub struct RenderState {
     /// The pass being rendered when the render was interrupted, and whether it was planned as
     /// the last: finished first when the render resumes (its pixels already done skip it).
     pub current: Option<(PlannedPass, Option<Stop>)>,
+    /// What the integrator learned that the sums do not hold, as of the last finished pass
+    /// ([`Integrator::learned_state`]; empty when it learns nothing, or before the first
+    /// pass). A render that continues this state with a new integrator gives it back with
+    /// [`Integrator::restore_learned_state`] after `preprocess`.
+    pub learned: Vec<u8>,
 }
 
 impl RenderState {
@@ -39,6 +44,7 @@ impl RenderState {
             ),
             history: History::default(),
             current: None,
+            learned: Vec::new(),
         }
     }
 }
@@ -58,8 +64,9 @@ pub enum Ending {
     /// The pass planned as the last is done.
     Complete,
     /// `cancel` was raised: the pass in progress is in the state's `current`, its finished
-    /// pixels in the sums; with per-pixel budgets the pass is dropped instead (the state is the
-    /// one before it, `current` empty).
+    /// pixels in the sums; with per-pixel budgets, or an integrator that learns beyond the sums
+    /// ([`Integrator::learned_state`]), the pass is dropped instead (the state, and what the
+    /// integrator learned, are the ones before it; `current` empty).
     Interrupted,
     /// The caller answered [`Control::Stop`].
     Stopped,
@@ -109,7 +116,8 @@ impl Scope {
 /// Renders the passes of `state` that `settings` plan, until the render is complete, `cancel`
 /// is raised, `on_pass` says stop or `scope.max_passes` passes are done. `on_pass` is called
 /// after each pass with the state (the pass's record last in its history); `on_tile` after
-/// each tile with the pixels that have their pass.
+/// each tile with the pixels that have their pass. An integrator that learns beyond the sums
+/// must hold the state's `learned` (restored by the caller, or left by an earlier `run`).
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     scene: &Scene,
@@ -137,8 +145,9 @@ pub fn run(
     let mut rendered = 0;
     // Per-pixel budgets decide each pass from the whole image's sums: a pass cut short would
     // leave sums that no decision was made from (the pixels done would differ from those an
-    // uninterrupted render gives them). So the sums from before each pass are kept to return to:
-    // twice the sums' memory, with these budgets only.
+    // uninterrupted render gives them). An integrator that learns beyond the sums has learned
+    // from samples of tiles cut short, which are rendered again when the pass is. So the sums
+    // from before each pass are kept to return to: twice the sums' memory, in these cases only.
     let mut before_pass: Option<FilmSums> = None;
     let ending = loop {
         state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
@@ -158,7 +167,8 @@ pub fn run(
         if state.history.passes.is_empty() {
             state.history.mass = pass.planned as f64;
         }
-        if scope.budgets != Budgets::Uniform {
+        let learned_before = integrator.learned_state();
+        if scope.budgets != Budgets::Uniform || !learned_before.is_empty() {
             match &mut before_pass {
                 Some(sums) => sums.clone_from(&state.sums),
                 None => before_pass = Some(state.sums.clone()),
@@ -201,6 +211,9 @@ pub fn run(
         if pass_stats.pixels_done < pass_stats.pixels_total {
             if let Some(sums) = before_pass.take() {
                 state.sums = sums;
+                integrator
+                    .restore_learned_state(&learned_before)
+                    .expect("an integrator takes back the state it saved");
                 stats.pixels_done = state.sums.pixels_with_samples();
                 stats.tiles_done = 0;
                 state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
@@ -220,6 +233,9 @@ pub fn run(
         });
         state.history.stopped = stop;
         state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
+        if !learned_before.is_empty() {
+            state.learned = integrator.learned_state();
+        }
         if on_pass(state) == Control::Stop {
             break Ending::Stopped;
         }

@@ -1024,6 +1024,28 @@ impl Integrator for Path {
         }
     }
 
+    fn learned_state(&self) -> Vec<u8> {
+        self.cache.as_ref().map_or_else(Vec::new, VertexCache::save)
+    }
+
+    fn restore_learned_state(&mut self, state: &[u8]) -> Result<(), String> {
+        match &mut self.cache {
+            _ if state.is_empty() => Ok(()),
+            Some(cache) => cache.restore(state),
+            None => Err(format!(
+                "this `{NAME}` learns no α across passes (`{DEEP_ALLOCATION}` is neither \"{LEARNED}\" nor \"{GUIDING_FRACTION}\"), but the state holds a cache of α"
+            )),
+        }
+    }
+
+    fn merge_learned_states(&self, a: &[u8], b: &[u8]) -> Result<Vec<u8>, String> {
+        match (a.is_empty(), b.is_empty()) {
+            (true, true) => Ok(Vec::new()),
+            (false, false) => crate::vertex_cache::merge(a, b),
+            _ => Err("one shard holds a cache of α and the other none".into()),
+        }
+    }
+
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb {
         if self.max_depth == 0 {
             return Rgb::ZERO;
