@@ -836,10 +836,17 @@ fn render_in_passes(
         eprintln!(
             "interrupted: wrote a partial image ({} of its passes{}) to {} after {}; {next}",
             state.history.passes.len(),
-            match (state.current.is_some(), scope.budgets) {
-                (true, _) => " and part of the next",
-                (false, Budgets::Uniform) => "",
-                (false, _) => {
+            match (
+                state.current.is_some(),
+                scope.budgets,
+                state.learned.is_empty()
+            ) {
+                (true, _, _) => " and part of the next",
+                (false, Budgets::Uniform, true) => "",
+                (false, Budgets::Uniform, false) => {
+                    "; an integrator that learns from its passes drops a pass cut short, which taught it already"
+                }
+                (false, _, _) => {
                     "; per-pixel budgets drop a pass cut short, as they decide each pass from the whole image"
                 }
             },
