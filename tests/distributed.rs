@@ -373,36 +373,6 @@ fn a_planned_study_collects_to_the_local_report_and_names_missing_and_failed_cel
     );
 }
 
-/// Renders the passes of `state` that `settings` plan, at most `max_passes`, as `scope` says,
-/// raising the cancel after `cancel_at` tiles; `on_pass` sees the state after each pass.
-fn run_passes(
-    loaded: &mut lumis::scene::load::LoadedScene,
-    state: &mut RenderState,
-    settings: &Settings,
-    scope: Scope,
-    cancel_at: Option<u64>,
-    on_pass: &mut dyn FnMut(&RenderState) -> Control,
-) -> lumis::progressive::Outcome {
-    let tiles = std::sync::atomic::AtomicU64::new(0);
-    let cancel = std::sync::atomic::AtomicBool::new(false);
-    lumis::progressive::run(
-        &loaded.scene,
-        loaded.integrator.as_mut(),
-        settings,
-        state,
-        scope,
-        &cancel,
-        &|_| {
-            let done = tiles.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            if Some(done) == cancel_at {
-                cancel.store(true, std::sync::atomic::Ordering::Relaxed);
-            }
-        },
-        on_pass,
-    )
-    .expect("render")
-}
-
 /// `path`'s world-space cache of α (`deep_allocation` "learned" and "guiding_fraction") travels
 /// in state and shard files. A render of the Cornell box in 3 passes (3 tiles each) stopped
 /// after pass 1 and continued from its saved state by a new integrator (and by `lumis render
@@ -469,7 +439,7 @@ fn the_path_cache_of_alpha_resumes_and_shards_into_one_image() {
         };
         let mut whole = fresh(&whole_loaded);
         let mut after = Vec::new();
-        let outcome = run_passes(
+        let outcome = common::run_passes(
             &mut whole_loaded,
             &mut whole,
             &settings,
@@ -496,7 +466,7 @@ fn the_path_cache_of_alpha_resumes_and_shards_into_one_image() {
             max_passes: Some(1),
             ..Scope::whole(2)
         };
-        let stats = run_passes(&mut first, &mut state, &settings, one, None, &mut |_| {
+        let stats = common::run_passes(&mut first, &mut state, &settings, one, None, &mut |_| {
             Control::Continue
         })
         .stats;
@@ -512,7 +482,7 @@ fn the_path_cache_of_alpha_resumes_and_shards_into_one_image() {
             .restore_learned_state(&resumed.learned)
             .unwrap();
         let continued = |loaded: &mut _, state: &mut RenderState| {
-            run_passes(loaded, state, &settings, Scope::whole(2), None, &mut |_| {
+            common::run_passes(loaded, state, &settings, Scope::whole(2), None, &mut |_| {
                 Control::Continue
             })
             .ending
@@ -565,7 +535,7 @@ fn the_path_cache_of_alpha_resumes_and_shards_into_one_image() {
         // Cut short in the middle of pass 2 (one thread: the tiles in order).
         let mut cut_loaded = load(&set);
         let mut cut = fresh(&cut_loaded);
-        let outcome = run_passes(
+        let outcome = common::run_passes(
             &mut cut_loaded,
             &mut cut,
             &settings,
@@ -602,11 +572,15 @@ fn the_path_cache_of_alpha_resumes_and_shards_into_one_image() {
                         state
                     };
                     let scope = Scope { shard, ..one };
-                    let stats =
-                        run_passes(&mut loaded, &mut state, &settings, scope, None, &mut |_| {
-                            Control::Continue
-                        })
-                        .stats;
+                    let stats = common::run_passes(
+                        &mut loaded,
+                        &mut state,
+                        &settings,
+                        scope,
+                        None,
+                        &mut |_| Control::Continue,
+                    )
+                    .stats;
                     state.sums.retain_tiles(|t| shard.has(t));
                     let part = d.join(format!("{mode}-{index}-of-{count}.lshard"));
                     file(&set, shard, stats, &state).write(&part).unwrap();

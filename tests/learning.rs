@@ -351,24 +351,14 @@ fn an_interrupted_render_with_per_pixel_budgets_resumes_into_the_same_image() {
     let run = |loaded: &mut lumis::scene::load::LoadedScene,
                state: &mut RenderState,
                cancel_at: Option<u64>| {
-        let tiles = std::sync::atomic::AtomicU64::new(0);
-        let cancel = AtomicBool::new(false);
-        lumis::progressive::run(
-            &loaded.scene,
-            loaded.integrator.as_mut(),
-            &whole_settings,
+        common::run_passes(
+            loaded,
             state,
+            &whole_settings,
             scope,
-            &cancel,
-            &|_| {
-                let done = tiles.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                if Some(done) == cancel_at {
-                    cancel.store(true, std::sync::atomic::Ordering::Relaxed);
-                }
-            },
+            cancel_at,
             &mut |_| Control::Continue,
         )
-        .expect("render")
         .ending
     };
     let fresh = |loaded: &lumis::scene::load::LoadedScene| {

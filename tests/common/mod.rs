@@ -153,3 +153,33 @@ pub fn assert_finite_outputs(film: &lumis::film::Film, name: &str) {
         "{name}: bad AOV value"
     );
 }
+
+/// Renders the passes of `state` that `settings` plan, at most `max_passes`, as `scope` says,
+/// raising the cancel after `cancel_at` tiles; `on_pass` sees the state after each pass.
+pub fn run_passes(
+    loaded: &mut lumis::scene::load::LoadedScene,
+    state: &mut lumis::progressive::RenderState,
+    settings: &lumis::passes::Settings,
+    scope: lumis::progressive::Scope,
+    cancel_at: Option<u64>,
+    on_pass: &mut dyn FnMut(&lumis::progressive::RenderState) -> lumis::progressive::Control,
+) -> lumis::progressive::Outcome {
+    let tiles = std::sync::atomic::AtomicU64::new(0);
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    lumis::progressive::run(
+        &loaded.scene,
+        loaded.integrator.as_mut(),
+        settings,
+        state,
+        scope,
+        &cancel,
+        &|_| {
+            let done = tiles.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            if Some(done) == cancel_at {
+                cancel.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        },
+        on_pass,
+    )
+    .expect("render")
+}
