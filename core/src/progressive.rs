@@ -27,8 +27,8 @@ pub struct RenderState {
     /// the last: finished first when the render resumes (its pixels already done skip it).
     pub current: Option<(PlannedPass, Option<Stop>)>,
     /// What the integrator learned that the sums do not hold, as of the last finished pass
-    /// ([`Integrator::learned_state`]; empty when it learns nothing, or before the first
-    /// pass). A render that continues this state with a new integrator gives it back with
+    /// ([`Integrator::learned_state`]; empty when it learns nothing, or before [`run`] first
+    /// sees it). A render that continues this state with a new integrator gives it back with
     /// [`Integrator::restore_learned_state`] after `preprocess`.
     pub learned: Vec<u8>,
 }
@@ -149,6 +149,13 @@ pub fn run(
     // from samples of tiles cut short, which are rendered again when the pass is. So the sums
     // from before each pass are kept to return to: twice the sums' memory, in these cases only.
     let mut before_pass: Option<FilmSums> = None;
+    // What the integrator has learned as of the last finished pass: the state's, which the
+    // caller restored, or else the integrator's own from before its first pass (empty for one
+    // that learns nothing). Exported once per pass, after it; an interrupted pass restores it.
+    if state.learned.is_empty() {
+        state.learned = integrator.learned_state();
+    }
+    let learns = !state.learned.is_empty();
     let ending = loop {
         state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
         if cancel.load(Ordering::Relaxed) {
@@ -167,8 +174,7 @@ pub fn run(
         if state.history.passes.is_empty() {
             state.history.mass = pass.planned as f64;
         }
-        let learned_before = integrator.learned_state();
-        if scope.budgets != Budgets::Uniform || !learned_before.is_empty() {
+        if scope.budgets != Budgets::Uniform || learns {
             match &mut before_pass {
                 Some(sums) => sums.clone_from(&state.sums),
                 None => before_pass = Some(state.sums.clone()),
@@ -212,7 +218,7 @@ pub fn run(
             if let Some(sums) = before_pass.take() {
                 state.sums = sums;
                 integrator
-                    .restore_learned_state(&learned_before)
+                    .restore_learned_state(&state.learned)
                     .expect("an integrator takes back the state it saved");
                 stats.pixels_done = state.sums.pixels_with_samples();
                 stats.tiles_done = 0;
@@ -233,7 +239,7 @@ pub fn run(
         });
         state.history.stopped = stop;
         state.history.elapsed = elapsed_before + session.elapsed().as_secs_f64();
-        if !learned_before.is_empty() {
+        if learns {
             state.learned = integrator.learned_state();
         }
         if on_pass(state) == Control::Stop {

@@ -154,8 +154,9 @@ pub fn assert_finite_outputs(film: &lumis::film::Film, name: &str) {
     );
 }
 
-/// Renders the passes of `state` that `settings` plan, at most `max_passes`, as `scope` says,
-/// raising the cancel after `cancel_at` tiles; `on_pass` sees the state after each pass.
+/// Renders the passes of `state` that `settings` plan, as `scope` says (its threads, shard,
+/// budgets and most passes), raising the cancel after `cancel_at` tiles; `on_pass` sees the
+/// state after each pass.
 pub fn run_passes(
     loaded: &mut lumis::scene::load::LoadedScene,
     state: &mut lumis::progressive::RenderState,

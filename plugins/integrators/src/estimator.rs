@@ -164,9 +164,8 @@ fn reaches_light(
 }
 
 /// [`reaches_light`] for the environment light: whether anything blocks the ray. Kept out of
-/// `reaches_light`, which an area light's samples run through: the any-hit traversal inlined
-/// there made it six times larger, and the render's hot code no longer fit the instruction
-/// cache as well.
+/// `reaches_light`, which every area light's sample runs through: inlined there, this any-hit
+/// traversal made it six times larger with code those samples never run.
 #[inline(never)]
 fn reaches_environment(scene: &Scene, light: usize, ray: &Ray, from: &Intersection) -> Reached {
     if scene.geometry.occluded_by_others(ray, None, Some(from)) {
