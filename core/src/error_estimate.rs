@@ -49,7 +49,7 @@
 //! ν = 2(Σt)²/(Σt² + z √Σt⁴). With many alike pixels this is about 2/3 of the normal ν; with few
 //! dominant ones much less, which is where the normal ν failed.
 
-use crate::film_sums::FilmSums;
+use crate::film_sums::{FilmSums, for_each_pixel_in_rows};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor, Normal};
 
 /// ε of the relative MSE as a fraction of the image's mean luminance, as `lumis study`'s default
@@ -140,16 +140,19 @@ fn standard_normal() -> Normal {
     Normal::new(0.0, 1.0).expect("the standard normal distribution")
 }
 
-/// Per pixel (in the sums' order): the half-images' luminances A, B and the weight they share,
-/// for pixels with samples.
-fn halves(sums: &FilmSums) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+/// Per pixel with samples, in the sums' order: its half-images' luminances A and B.
+fn halves(sums: &FilmSums) -> impl Iterator<Item = (f64, f64)> + '_ {
     (0..sums.samples.len())
         .filter(|&p| sums.samples[p] > 0)
-        .map(|p| {
-            let [h0, h1] = sums.halves[p];
-            let half = sums.weight[p] / 2.0;
-            (p, h0 / half, h1 / half)
-        })
+        .map(|p| half_images(sums, p))
+}
+
+/// Pixel `p`'s half-images' luminances A and B (it must have samples).
+#[inline]
+fn half_images(sums: &FilmSums, p: usize) -> (f64, f64) {
+    let [h0, h1] = sums.halves[p];
+    let half = sums.weight[p] / 2.0;
+    (h0 / half, h1 / half)
 }
 
 /// The denominators' ε: (0.01 × the image's mean luminance)² for the relative MSE, 0 for the MSE.
@@ -158,7 +161,7 @@ fn epsilon(sums: &FilmSums, metric: Metric) -> f64 {
         return 0.0;
     }
     let (mut total, mut pixels) = (0.0, 0u64);
-    for (_, a, b) in halves(sums) {
+    for (a, b) in halves(sums) {
         total += (a + b) / 2.0;
         pixels += 1;
     }
@@ -198,7 +201,7 @@ pub fn estimate(sums: &FilmSums, metric: Metric, confidence: f64) -> Option<Erro
     let epsilon = epsilon(sums, metric);
     // ê's terms, and the plug-in's (the same for the MSE) for the interval's low end.
     let (mut terms, mut low_terms) = (TermSums::default(), TermSums::default());
-    for (_, a, b) in halves(sums) {
+    for (a, b) in halves(sums) {
         terms.add(term(a, b, metric, epsilon, false));
         low_terms.add(term(a, b, metric, epsilon, true));
     }
@@ -272,9 +275,12 @@ pub fn error_map(sums: &FilmSums, metric: Metric) -> Vec<f64> {
         return map;
     }
     let epsilon = epsilon(sums, metric);
-    for (p, a, b) in halves(sums) {
-        map[sums.row_index(p)] = term(a, b, metric, epsilon, false);
-    }
+    for_each_pixel_in_rows(window, |p, row| {
+        if sums.samples[p] > 0 {
+            let (a, b) = half_images(sums, p);
+            map[row] = term(a, b, metric, epsilon, false);
+        }
+    });
     map
 }
 

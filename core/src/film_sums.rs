@@ -6,6 +6,7 @@
 //! pass, and every statistic over the image visits the pixels in one fixed order.
 
 use crate::film::Film;
+use crate::image_io;
 use crate::math::Rgb;
 use crate::output::Window;
 use crate::scene::Scene;
@@ -81,6 +82,23 @@ pub fn tiles(window: Window) -> impl Iterator<Item = Tile> {
         first += tile.pixels();
         tile
     })
+}
+
+/// Calls `f` with each pixel of `window` as (its index in the sums, its row-order index in the
+/// window), in the sums' order: how a walk over the whole film resolves pixels, without
+/// [`FilmSums::row_index`]'s divisions per pixel.
+pub fn for_each_pixel_in_rows(window: Window, mut f: impl FnMut(usize, usize)) {
+    let width = window.width as usize;
+    for tile in tiles(window) {
+        let (x0, y0) = (tile.origin.x as usize, tile.origin.y as usize);
+        let (w, h) = (tile.size.x as usize, tile.size.y as usize);
+        for y in 0..h {
+            let (first, row) = (tile.first + y * w, (y0 + y) * width + x0);
+            for x in 0..w {
+                f(first + x, row + x);
+            }
+        }
+    }
 }
 
 /// The sums of one tile, borrowed mutably: what a worker thread adds a pass to.
@@ -262,15 +280,29 @@ impl FilmSums {
         }
     }
 
-    /// The colour the sums resolve to, without AOVs (a preview between passes).
+    /// The colour the sums resolve to, without AOVs.
     pub fn resolve_color(&self) -> Film {
         let mut film = Film::new(self.full_width, self.full_height, self.window, Vec::new());
-        for p in 0..self.samples.len() {
+        for_each_pixel_in_rows(self.window, |p, row| {
             if self.samples[p] > 0 {
-                film.color[self.row_index(p)] = pixel_color(self.color[p], self.weight[p]);
+                film.color[row] = pixel_color(self.color[p], self.weight[p]);
             }
-        }
+        });
         film
+    }
+
+    /// The preview PNG's bytes (row order, RGB) of the colour the sums resolve to, scaled by
+    /// `scale` (2^exposure): [`image_io::display_bytes`] of [`FilmSums::resolve_color`]'s film in
+    /// one walk over the sums, without the film (a preview after each pass).
+    pub fn preview_bytes(&self, scale: f32) -> Vec<u8> {
+        let mut bytes = vec![0; self.samples.len() * 3];
+        for_each_pixel_in_rows(self.window, |p, row| {
+            if self.samples[p] > 0 {
+                let color = pixel_color(self.color[p], self.weight[p]);
+                bytes[row * 3..row * 3 + 3].copy_from_slice(&image_io::display_bytes(color, scale));
+            }
+        });
+        bytes
     }
 
     /// Pixels with samples.

@@ -273,20 +273,47 @@ pub fn linear_to_srgb(v: f32) -> f32 {
     }
 }
 
+/// Bins of the linear range [0, 1] for [`srgb_byte`]: in each, the byte steps up at most once,
+/// since the curve's steepest part (12.92 × 255 bytes per unit, at 0) is less than a byte per
+/// bin.
+const SRGB_BINS: usize = 4096;
+
+/// One bin of [`srgb_byte`]'s table: the byte at its lower edge, and the value in it (or above
+/// it) where the byte steps up.
+#[derive(Clone, Copy)]
+struct SrgbBin {
+    byte: u8,
+    step: f32,
+}
+
 /// The 8-bit sRGB value of a linear value, clamped to [0, 1] (NaN is 0):
-/// `(linear_to_srgb(v) * 255 + 0.5) as u8`, looked up among the 255 linear values where that
-/// byte steps up rather than computed, because one `powf` per channel was the largest part of
-/// writing a render's preview after each pass.
+/// `(linear_to_srgb(v) * 255 + 0.5) as u8`, looked up rather than computed, because one `powf`
+/// per channel was the largest part of writing a render's preview after each pass. The value's
+/// bin of [0, 1] gives the byte at the bin's lower edge and where in the bin it steps up: one
+/// comparison (the table is built from the 255 values where the byte steps up).
 pub fn srgb_byte(v: f32) -> u8 {
-    static STEPS: OnceLock<[f32; 255]> = OnceLock::new();
-    let steps = STEPS.get_or_init(|| std::array::from_fn(|k| least_with_byte_above(k as u8)));
-    // The steps at or below v, counted by halving without branches (a branch would be
-    // mispredicted at every other pixel of an image).
-    let mut below = 0;
-    for half in [128, 64, 32, 16, 8, 4, 2, 1] {
-        below += usize::from(steps[below + half - 1] <= v) * half;
-    }
-    below as u8
+    static TABLE: OnceLock<Box<[SrgbBin]>> = OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        let steps: Vec<f32> = (0..255u8).map(least_with_byte_above).collect();
+        let mut byte = 0;
+        (0..=SRGB_BINS)
+            .map(|bin| {
+                let edge = bin as f32 / SRGB_BINS as f32;
+                while steps.get(byte).is_some_and(|&step| step <= edge) {
+                    byte += 1;
+                }
+                SrgbBin {
+                    byte: byte as u8,
+                    step: steps.get(byte).copied().unwrap_or(f32::INFINITY),
+                }
+            })
+            .collect()
+    });
+    // NaN fails the comparison and is 0; v × SRGB_BINS is exact (a power of two), so the bin's
+    // lower edge is at most v; 1 has a bin of its own, the last.
+    let v = if v >= 0.0 { v.min(1.0) } else { 0.0 };
+    let bin = table[(v * SRGB_BINS as f32) as usize];
+    bin.byte + u8::from(v >= bin.step)
 }
 
 /// The least value in [0, 1] whose sRGB byte is above `k` (`k` < 255): a bisection over the
@@ -317,17 +344,20 @@ pub fn png_writer(film: &Film, exposure: f32) -> FileWriter<'_> {
     Box::new(move |file| {
         let (w, h) = (film.window.width, film.window.height);
         let scale = exposure.exp2();
-        let bytes: Vec<u8> = film
-            .color
-            .iter()
-            .flat_map(|c| c.to_array())
-            .map(|v| {
-                let v = if v.is_finite() { v * scale } else { 0.0 };
-                srgb_byte(v)
-            })
-            .collect();
+        let mut bytes = vec![0; film.color.len() * 3];
+        for (pixel, color) in bytes.chunks_exact_mut(3).zip(&film.color) {
+            pixel.copy_from_slice(&display_bytes(*color, scale));
+        }
         encode_png(file, w, h, bytes)
     })
+}
+
+/// A linear colour's 8-bit sRGB bytes in the preview PNG, scaled by `scale` (2^exposure) and
+/// clamped; a non-finite channel is black.
+#[inline]
+pub fn display_bytes(color: Rgb, scale: f32) -> [u8; 3] {
+    let byte = |v: f32| srgb_byte(if v.is_finite() { v * scale } else { 0.0 });
+    [byte(color.x), byte(color.y), byte(color.z)]
 }
 
 fn exr_error(path: &Path, e: exr::error::Error) -> String {
@@ -611,6 +641,11 @@ mod tests {
     /// either side), at 2^20 values spread over the floats of [0, 1], and out of range.
     #[test]
     fn srgb_bytes_are_looked_up_as_computed() {
+        // The table's premise: the byte steps up at most once per bin.
+        let steps: Vec<f32> = (0..255u8).map(least_with_byte_above).collect();
+        for pair in steps.windows(2) {
+            assert!(pair[1] - pair[0] > 1.0 / SRGB_BINS as f32, "{pair:?}");
+        }
         let computed = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
         let one = 1.0f32.to_bits();
         let near_steps = (0..255u8).flat_map(|k| {

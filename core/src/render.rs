@@ -15,7 +15,7 @@
 
 use crate::film::Film;
 pub use crate::film_sums::FilmSums;
-use crate::film_sums::{TileSumsMut, pixel_color, tiles};
+use crate::film_sums::{TileSumsMut, for_each_pixel_in_rows, pixel_color, tiles};
 use crate::geometry::{PACKET_SIZE, take_ray_count};
 use crate::integrator::{CameraSample, Integrator, PacketSums};
 use crate::math::Rgb;
@@ -525,8 +525,7 @@ impl FilmSums {
             integrator.aovs(scene),
         );
         let channels = film.aov_channels();
-        for p in 0..self.samples.len() {
-            let row = self.row_index(p);
+        for_each_pixel_in_rows(self.window, |p, row| {
             resolve_pixel(
                 scene,
                 integrator,
@@ -537,7 +536,7 @@ impl FilmSums {
                 &mut film.color[row],
                 &mut film.aov_data[row * channels..(row + 1) * channels],
             );
-        }
+        });
         film
     }
 }

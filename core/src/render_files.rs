@@ -260,11 +260,14 @@ pub fn write_previews(
     exposure: f32,
     heat_map: Option<error_estimate::Metric>,
 ) -> Result<(), OutputError> {
-    let film = sums.resolve_color();
+    let (width, height) = (sums.window.width, sums.window.height);
+    let bytes = sums.preview_bytes(exposure.exp2());
     let png = exr.with_extension("png");
     let heat = heat_map_path(exr);
-    let mut outputs: Vec<(&Path, FileWriter<'_>)> =
-        vec![(&png, image_io::png_writer(&film, exposure))];
+    let mut outputs: Vec<(&Path, FileWriter<'_>)> = vec![(
+        &png,
+        Box::new(move |file| image_io::encode_png(file, width, height, bytes)),
+    )];
     if let Some(metric) = heat_map {
         outputs.push((&heat, heat_map_writer(sums, metric)));
     }
