@@ -4,7 +4,10 @@
 //! kernel written as a [`LaneKernel`] runs with the widest there is: [`with_widest_lanes`]). A
 //! plugin's scalar method and its batch method then run the same operations in the same order,
 //! so that a sample comes out of the batch bit for bit as out of the scalar call: the batch
-//! path is fast, and every statistical test of the scalar path holds for it.
+//! path is fast, and every statistical test of the scalar path holds for it. The BVH's node
+//! tests are written over it too (a lane per child of a node, or per ray of a packet), their
+//! AVX2 traversals running them through [`run_avx2`]: the SIMD intrinsics of the kernels are
+//! in this file.
 //!
 //! Branches become masks: a kernel computes both sides where lanes disagree and picks per lane
 //! with [`Lanes::select`]. Sine, cosine, arc tangent and arc cosine are polynomials in the same
@@ -27,6 +30,8 @@ pub trait Mask: Copy + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output
     fn lane(self, i: usize) -> bool;
     /// The mask whose lane `i` is `f(i)`.
     fn from_fn(f: impl FnMut(usize) -> bool) -> Self;
+    /// Lane `i` in bit `i` (a movemask).
+    fn bits(self) -> u32;
 }
 
 /// f32 values, one or several, with IEEE single-precision operations that round alike in each
@@ -48,6 +53,10 @@ pub trait Lanes:
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
     /// Lane `i`.
     fn lane(self, i: usize) -> f32;
+    /// The lanes from `values[..WIDTH]`, in one vector load.
+    fn load(values: &[f32]) -> Self;
+    /// Writes the lanes into `out[..WIDTH]`, in one vector store.
+    fn store(self, out: &mut [f32]);
     fn sqrt(self) -> Self;
     /// The largest integer not above `self`, as glam's SSE2 `floor` computes it: by truncation
     /// where |x| < 2²³ (so −0 gives +0), `self` itself elsewhere (NaN, infinities, integers).
@@ -202,6 +211,10 @@ impl Mask for bool {
     fn from_fn(mut f: impl FnMut(usize) -> bool) -> Self {
         f(0)
     }
+    #[inline(always)]
+    fn bits(self) -> u32 {
+        self as u32
+    }
 }
 
 impl Lanes for f32 {
@@ -219,6 +232,14 @@ impl Lanes for f32 {
     #[inline(always)]
     fn lane(self, _i: usize) -> f32 {
         self
+    }
+    #[inline(always)]
+    fn load(values: &[f32]) -> Self {
+        values[0]
+    }
+    #[inline(always)]
+    fn store(self, out: &mut [f32]) {
+        out[0] = self;
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -286,6 +307,10 @@ impl Mask for BVec4A {
     fn from_fn(mut f: impl FnMut(usize) -> bool) -> Self {
         BVec4A::new(f(0), f(1), f(2), f(3))
     }
+    #[inline(always)]
+    fn bits(self) -> u32 {
+        self.bitmask()
+    }
 }
 
 impl Lanes for Vec4 {
@@ -303,6 +328,14 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn lane(self, i: usize) -> f32 {
         self[i]
+    }
+    #[inline(always)]
+    fn load(values: &[f32]) -> Self {
+        Vec4::from_slice(values)
+    }
+    #[inline(always)]
+    fn store(self, out: &mut [f32]) {
+        self.write_to_slice(out)
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -343,6 +376,24 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn select(mask: BVec4A, if_true: Self, if_false: Self) -> Self {
         Vec4::select(mask, if_true, if_false)
+    }
+    /// SSE2's `minps`, which is the trait's `self < rhs ? self : rhs`, NaN and zeros
+    /// included: one instruction where the comparison and select take four (SSE2 has no
+    /// blend). Elsewhere the comparison and select: NEON's `fmin` returns NaN if either is.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn min(self, rhs: Self) -> Self {
+        use std::arch::x86_64::_mm_min_ps;
+        // SAFETY: every x86-64 processor has SSE2.
+        Vec4::from(unsafe { _mm_min_ps(self.into(), rhs.into()) })
+    }
+    /// SSE2's `maxps`, `self > rhs ? self : rhs`, as [`min`](Self::min) is `minps`.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn max(self, rhs: Self) -> Self {
+        use std::arch::x86_64::_mm_max_ps;
+        // SAFETY: every x86-64 processor has SSE2.
+        Vec4::from(unsafe { _mm_max_ps(self.into(), rhs.into()) })
     }
 }
 
@@ -648,6 +699,9 @@ pub fn with_widest_lanes<K: LaneKernel>(kernel: K) -> K::Output {
     kernel.run::<Vec4, 4>()
 }
 
+#[cfg(target_arch = "x86_64")]
+pub(crate) use eight::run_avx2;
+
 /// Eight lanes in an AVX register. The type is private to this module and its values are
 /// made only inside [`eight::run_avx2`], which runs only where the processor has AVX2: that is
 /// what makes its intrinsics safe to call. Every method is inlined into that function, so
@@ -658,8 +712,12 @@ mod eight {
     use std::arch::x86_64::*;
     use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
+    /// Runs `kernel` eight lanes wide, in AVX registers. Safe to call from code compiled for
+    /// AVX2 (the BVH's AVX2 traversals run their node tests so); elsewhere the caller checks
+    /// that the processor has AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) fn run_avx2<K: LaneKernel>(kernel: K) -> K::Output {
+    #[inline]
+    pub(crate) fn run_avx2<K: LaneKernel>(kernel: K) -> K::Output {
         kernel.run::<F32x8, 8>()
     }
 
@@ -715,13 +773,6 @@ mod eight {
         }
     }
 
-    impl Mask8 {
-        #[inline(always)]
-        fn bits(self) -> u32 {
-            unsafe { _mm256_movemask_ps(self.0) as u32 }
-        }
-    }
-
     impl Mask for Mask8 {
         #[inline(always)]
         fn any(self) -> bool {
@@ -743,6 +794,10 @@ mod eight {
             }
             // SAFETY: `Aligned` puts the eight i32 on the 32-byte boundary the load needs.
             Mask8(unsafe { _mm256_castsi256_ps(_mm256_load_si256(lanes.0.as_ptr().cast())) })
+        }
+        #[inline(always)]
+        fn bits(self) -> u32 {
+            unsafe { _mm256_movemask_ps(self.0) as u32 }
         }
     }
 
@@ -777,6 +832,18 @@ mod eight {
             // SAFETY: `Aligned` puts the eight f32 on the 32-byte boundary the store needs.
             unsafe { _mm256_store_ps(lanes.0.as_mut_ptr(), self.0) };
             lanes.0[i]
+        }
+        #[inline(always)]
+        fn load(values: &[f32]) -> Self {
+            assert!(values.len() >= 8, "eight values to load");
+            // SAFETY: `values` holds the eight f32 the load reads.
+            F32x8(unsafe { _mm256_loadu_ps(values.as_ptr()) })
+        }
+        #[inline(always)]
+        fn store(self, out: &mut [f32]) {
+            assert!(out.len() >= 8, "room for eight values");
+            // SAFETY: `out` holds the eight f32 the store writes.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
         }
         #[inline(always)]
         fn sqrt(self) -> Self {
@@ -828,6 +895,17 @@ mod eight {
         fn select(mask: Mask8, if_true: Self, if_false: Self) -> Self {
             F32x8(unsafe { _mm256_blendv_ps(if_false.0, if_true.0, mask.0) })
         }
+        /// `vminps`, which is the trait's `self < rhs ? self : rhs`, NaN and zeros included
+        /// (`rhs` unless `self` is the smaller): one instruction for a comparison and a blend.
+        #[inline(always)]
+        fn min(self, rhs: Self) -> Self {
+            F32x8(unsafe { _mm256_min_ps(self.0, rhs.0) })
+        }
+        /// `vmaxps`, `self > rhs ? self : rhs`, as [`min`](Self::min) is `vminps`.
+        #[inline(always)]
+        fn max(self, rhs: Self) -> Self {
+            F32x8(unsafe { _mm256_max_ps(self.0, rhs.0) })
+        }
     }
 }
 
@@ -869,6 +947,12 @@ mod tests {
                     let pair = |i: usize| if i & 1 == 0 { (a, b) } else { (b, a) };
                     let (x, y) = (L::from_fn(|i| pair(i).0), L::from_fn(|i| pair(i).1));
                     let one = L::splat(1.0);
+                    let values: [f32; MAX_WIDTH] = std::array::from_fn(|i| pair(i).0);
+                    let mut stored = [f32::NAN; MAX_WIDTH];
+                    L::load(&values).store(&mut stored);
+                    for i in 0..W {
+                        assert!(same(stored[i], values[i]), "{W} lanes, load and store");
+                    }
                     let results: [(L, ScalarOp); 13] = [
                         (x + y, |x, y| x + y),
                         (x - y, |x, y| x - y),
@@ -907,6 +991,8 @@ mod tests {
                         ];
                         for (m, (mask, expected)) in masks.into_iter().enumerate() {
                             assert_eq!(mask.lane(i), expected, "{W} lanes, mask {m}, lane {i}");
+                            assert_eq!(mask.bits() >> i & 1 == 1, expected, "{W} lanes, bits");
+                            assert_eq!(mask.bits() >> W, 0, "{W} lanes, bits past the lanes");
                         }
                         let single = L::Mask::from_fn(|j| j == i);
                         assert!(single.lane(i) && (0..W).all(|j| single.lane(j) == (j == i)));

@@ -18,9 +18,10 @@
 use crate::allocation::Weighted;
 use crate::fixed_alpha::FixedAlpha;
 use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
-use crate::weighting::{Heuristic, PerSample};
+use crate::weighting::{Heuristic, PerSample, balance};
 use glam::Vec4;
 use lumis_core::integrator::Integrator;
+use lumis_core::math::lanes::Lanes;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
@@ -37,22 +38,22 @@ pub struct Cutoff {
 impl Heuristic for Cutoff {
     #[inline]
     fn weight(&self, mine: f32, other: f32) -> f32 {
-        if mine < self.threshold * other {
-            0.0
-        } else if other < self.threshold * mine {
-            1.0
-        } else {
-            1.0 / (1.0 + other / mine)
-        }
+        cutoff(mine, other, self.threshold)
     }
 
     #[inline]
     fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-        let t = Vec4::splat(self.threshold);
-        let balance = Vec4::ONE / (Vec4::ONE + other / mine);
-        let kept = Vec4::select((other * t).cmpgt(mine), Vec4::ZERO, balance);
-        Vec4::select((mine * t).cmpgt(other), Vec4::ONE, kept)
+        cutoff(mine, other, self.threshold)
     }
+}
+
+/// [`Cutoff`]'s weight, for one sample or for several: 0 where `mine` is below the cutoff, 1
+/// where `other` is, the balance heuristic's weight elsewhere.
+#[inline(always)]
+fn cutoff<L: Lanes>(mine: L, other: L, threshold: f32) -> L {
+    let t = L::splat(threshold);
+    let kept = L::select(other.lt(t * mine), L::splat(1.0), balance(mine, other));
+    L::select(mine.lt(t * other), L::splat(0.0), kept)
 }
 
 static PARAMS: &[ParamSpec] = &[

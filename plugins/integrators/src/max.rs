@@ -14,6 +14,7 @@ use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::weighting::{Heuristic, PerSample};
 use glam::Vec4;
 use lumis_core::integrator::Integrator;
+use lumis_core::math::lanes::Lanes;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
@@ -27,13 +28,19 @@ pub struct Maximum;
 impl Heuristic for Maximum {
     #[inline]
     fn weight(&self, mine: f32, other: f32) -> f32 {
-        if mine > other { 1.0 } else { 0.0 }
+        maximum(mine, other)
     }
 
     #[inline]
     fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-        Vec4::select(mine.cmpgt(other), Vec4::ONE, Vec4::ZERO)
+        maximum(mine, other)
     }
+}
+
+/// [`Maximum`]'s weight, for one sample or for several: 1 where `mine > other`, else 0.
+#[inline(always)]
+fn maximum<L: Lanes>(mine: L, other: L) -> L {
+    L::select(mine.gt(other), L::splat(1.0), L::splat(0.0))
 }
 
 static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];

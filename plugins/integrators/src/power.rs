@@ -13,6 +13,7 @@ use crate::mis::{AOVS_SPEC, MisIntegrator, SAMPLES_SPEC, read_samples};
 use crate::weighting::{Heuristic, PerSample};
 use glam::Vec4;
 use lumis_core::integrator::Integrator;
+use lumis_core::math::lanes::Lanes;
 use lumis_core::params::{ParamSpec, Params, PluginError};
 use lumis_core::registry::IntegratorPlugin;
 
@@ -27,15 +28,20 @@ pub struct Power;
 impl Heuristic for Power {
     #[inline]
     fn weight(&self, mine: f32, other: f32) -> f32 {
-        let r = other / mine;
-        1.0 / (1.0 + r * r)
+        power(mine, other)
     }
 
     #[inline]
     fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-        let r = other / mine;
-        Vec4::ONE / (Vec4::ONE + r * r)
+        power(mine, other)
     }
+}
+
+/// [`Power`]'s weight, for one sample or for several: 1 / (1 + r²), r = other / mine.
+#[inline(always)]
+fn power<L: Lanes>(mine: L, other: L) -> L {
+    let r = other / mine;
+    L::splat(1.0) / (L::splat(1.0) + r * r)
 }
 
 static PARAMS: &[ParamSpec] = &[SAMPLES_SPEC, AOVS_SPEC];

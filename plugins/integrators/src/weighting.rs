@@ -15,6 +15,7 @@ use crate::estimator::SampleRecord;
 use crate::phase::{Phase, PhaseRole, SampleSplit};
 use glam::{UVec2, Vec4};
 use lumis_core::math::Rgb;
+use lumis_core::math::lanes::Lanes;
 use lumis_core::scene::Scene;
 
 /// Combines one phase's samples into its estimate.
@@ -64,7 +65,8 @@ pub trait Heuristic: Send + Sync {
     /// Four weights at once, lane i being `weight(mine[i], other[i])` bit for bit; lanes with
     /// equal products are discarded, whatever they hold. The default calls `weight` four times;
     /// a heuristic whose formula is plain arithmetic overrides it with vector arithmetic (four
-    /// divisions for the price of one: the weighting pass is bound by its divisions).
+    /// divisions for the price of one: the weighting pass is bound by its divisions), writing
+    /// the formula once over [`Lanes`] for both methods, as [`balance`] is.
     #[inline]
     fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
         Vec4::new(
@@ -84,13 +86,19 @@ pub struct Balance;
 impl Heuristic for Balance {
     #[inline]
     fn weight(&self, mine: f32, other: f32) -> f32 {
-        1.0 / (1.0 + other / mine)
+        balance(mine, other)
     }
 
     #[inline]
     fn weight4(&self, mine: Vec4, other: Vec4) -> Vec4 {
-        Vec4::ONE / (Vec4::ONE + other / mine)
+        balance(mine, other)
     }
+}
+
+/// [`Balance`]'s weight, for one sample or for several: 1 / (1 + other / mine).
+#[inline(always)]
+pub fn balance<L: Lanes>(mine: L, other: L) -> L {
+    L::splat(1.0) / (L::splat(1.0) + other / mine)
 }
 
 /// The multi-sample estimator with the per-sample weights of a [`Heuristic`]. A Dirac BSDF

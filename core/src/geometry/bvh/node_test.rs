@@ -1,22 +1,28 @@
 //! The node test: which of a node's eight children a ray (or a packet of rays) enters, as a
-//! bit mask, and the distances at which it enters them. x86-64 processors with AVX2 run
-//! kernels compiled for them with the node tests in AVX intrinsics ([`node_test_avx2`] and its
-//! packet twins), chosen at run time (the binary still runs on any x86-64), and every other
-//! processor runs the portable node test, which the compiler vectorises for its baseline (SSE2
-//! on x86-64, NEON on aarch64). Both compute the same IEEE operations in the same order (no
-//! fused multiply-add: Rust never contracts), so results do not depend on the CPU (a test
-//! compares the two bit for bit).
+//! bit mask, and the distances at which it enters them. Each of the three node tests (a ray's,
+//! a packet's, and which rays of a packet enter one child) is written once over [`Lanes`], a
+//! child (or a ray) per lane, and compiled twice: eight lanes wide in AVX registers
+//! ([`node_test_avx2`] and its packet twins) for the kernels that x86-64 processors with AVX2
+//! run, chosen at run time (the binary still runs on any x86-64), and four wide (glam's `Vec4`:
+//! SSE2 on x86-64, NEON on aarch64) for every other processor. Every lane computes the same
+//! IEEE operations in the same order (no fused multiply-add: Rust never contracts), so results
+//! do not depend on the CPU (tests compare the widths bit for bit, one lane at a time too). The
+//! intrinsics are in `math/lanes.rs`.
 //!
 //! The node test is conservative under rounding (Ize, "Robust BVH ray traversal", JCGT 2013;
 //! pbrt-v4 §6.8.2): the far distance is enlarged by 2γ₃, the bound of the error of
 //! `(plane − origin) · (1 / direction)`. A ray aimed exactly at the edge of a flat box (an
 //! axis-aligned square light) therefore enters it, where a rounded slab test can miss it.
 //!
-//! Why one file of over 600 lines: the AVX2 and the portable node tests sit side by side, so that
-//! they are read and changed together (they must agree bit for bit), with their tests.
+//! Why one file of 600 lines: the rays' and packets' set-up and the node tests that read it,
+//! with their tests (over 250 lines), which check them together.
 
 use super::{PACKET_SIZE, WideNode};
 use crate::math::gamma;
+#[cfg(target_arch = "x86_64")]
+use crate::math::lanes::{LaneKernel, run_avx2};
+use crate::math::lanes::{Lanes, Mask};
+use glam::Vec4;
 
 /// Per-ray constants of the node test: the origin, the reciprocal direction (with ±f32::MAX
 /// for a zero component, so that no lane computes 0 · ∞), and which bound is near per axis.
@@ -147,69 +153,120 @@ pub(super) fn far_scale() -> f32 {
 }
 
 /// The children of `node` that the ray enters before `t_max`, as a bit mask, and the distances
-/// at which it enters them. Written lane-wise over arrays of 8 so that the compiler turns each
-/// line into one 8-wide (AVX2) or two 4-wide (SSE2) operations.
+/// at which it enters them: the eight children as groups of `L::WIDTH`, a child per lane.
 #[inline(always)]
-pub(super) fn node_test(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
-    let mut t_near = [0.0f32; 8];
-    let mut t_far = [t_max; 8];
-    for axis in 0..3 {
-        let near_planes = &node.bounds[ray.near[axis]];
-        let far_planes = &node.bounds[ray.near[axis] ^ 1];
-        let (o, inv) = (ray.origin[axis], ray.inv_direction[axis]);
-        for lane in 0..8 {
-            let n = (near_planes[lane] - o) * inv;
-            let f = (far_planes[lane] - o) * inv;
-            // Comparisons rather than f32::max/min: no NaN arises here, and these compile to
-            // single max/min instructions.
-            t_near[lane] = if n > t_near[lane] { n } else { t_near[lane] };
-            t_far[lane] = if f < t_far[lane] { f } else { t_far[lane] };
+pub(super) fn node_test_lanes<L: Lanes>(
+    node: &WideNode,
+    ray: &RayBoxTest,
+    t_max: f32,
+) -> (u32, [f32; 8]) {
+    let scale = L::splat(far_scale());
+    let (mut mask, mut near) = (0u32, [0.0f32; 8]);
+    for group in 0..8 / L::WIDTH {
+        let at = group * L::WIDTH;
+        let mut t_near = L::splat(0.0);
+        let mut t_far = L::splat(t_max);
+        for axis in 0..3 {
+            let near_planes = L::load(&node.bounds[ray.near[axis]][at..]);
+            let far_planes = L::load(&node.bounds[ray.near[axis] ^ 1][at..]);
+            let (o, inv) = (
+                L::splat(ray.origin[axis]),
+                L::splat(ray.inv_direction[axis]),
+            );
+            let n = (near_planes - o) * inv;
+            let f = (far_planes - o) * inv;
+            // `n > t_near ? n : t_near` and `f < t_far ? f : t_far` (Lanes::max and min, one
+            // maxps and one minps), not f32::max and min, which cost more around NaN.
+            t_near = n.max(t_near);
+            t_far = f.min(t_far);
         }
+        mask |= t_near.le(t_far * scale).bits() << at;
+        t_near.store(&mut near[at..]);
     }
-    let scale = far_scale();
-    let mut mask = 0u32;
-    for lane in 0..8 {
-        mask |= ((t_near[lane] <= t_far[lane] * scale) as u32) << lane;
-    }
-    (mask, t_near)
+    (mask, near)
 }
 
-/// [`node_test`] for a packet: the children one of its rays may enter before `t_max` (the
-/// largest of the rays' bounds), and distances no greater than any of theirs.
+/// [`node_test_lanes`] for a packet: the children one of its rays may enter before `t_max`
+/// (the largest of the rays' bounds), and distances no greater than any of theirs.
+#[inline(always)]
+pub(super) fn packet_node_test_lanes<L: Lanes>(
+    node: &WideNode,
+    packet: &PacketBoxTest,
+    t_max: f32,
+) -> (u32, [f32; 8]) {
+    let scale = L::splat(far_scale());
+    let (mut mask, mut near) = (0u32, [0.0f32; 8]);
+    for group in 0..8 / L::WIDTH {
+        let at = group * L::WIDTH;
+        let mut t_near = L::splat(0.0);
+        let mut t_far = L::splat(t_max);
+        for axis in 0..3 {
+            let o = L::splat(packet.origin[axis]);
+            let near = L::load(&node.bounds[packet.near[axis]][at..]) - o;
+            let far = L::load(&node.bounds[packet.near[axis] ^ 1][at..]) - o;
+            let (low, high) = (
+                L::splat(packet.inv_low[axis]),
+                L::splat(packet.inv_high[axis]),
+            );
+            let n = (near * low).min(near * high);
+            let f = (far * low).max(far * high);
+            t_near = n.max(t_near);
+            t_far = f.min(t_far);
+        }
+        mask |= t_near.le(t_far * scale).bits() << at;
+        t_near.store(&mut near[at..]);
+    }
+    (mask, near)
+}
+
+/// The rays of `packet` that enter child `lane` of `node` before their `t_max` (a bit per
+/// ray; lanes of `t_max` past the rays must hold a negative bound), as groups of `L::WIDTH`
+/// rays, a ray per lane. Each ray's lane computes what [`node_test_lanes`] computes for that
+/// ray alone, operation for operation.
+#[inline(always)]
+pub(super) fn rays_entering_lanes<L: Lanes>(
+    node: &WideNode,
+    lane: usize,
+    packet: &PacketBoxTest,
+    t_max: &[f32; PACKET_SIZE],
+) -> u32 {
+    let scale = L::splat(far_scale());
+    let mut mask = 0u32;
+    for group in 0..PACKET_SIZE / L::WIDTH {
+        let at = group * L::WIDTH;
+        let mut t_near = L::splat(0.0);
+        let mut t_far = L::load(&t_max[at..]);
+        for axis in 0..3 {
+            let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
+            let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
+            let inv = L::load(&packet.inv[axis][at..]);
+            let n = L::splat(near_plane) * inv;
+            let f = L::splat(far_plane) * inv;
+            t_near = n.max(t_near);
+            t_far = f.min(t_far);
+        }
+        mask |= t_near.le(t_far * scale).bits() << at;
+    }
+    mask
+}
+
+/// [`node_test_lanes`] four lanes wide (SSE2 or NEON registers), for processors without AVX2.
+#[inline(always)]
+pub(super) fn node_test(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    node_test_lanes::<Vec4>(node, ray, t_max)
+}
+
+/// [`packet_node_test_lanes`] four lanes wide.
 #[inline(always)]
 pub(super) fn packet_node_test(
     node: &WideNode,
     packet: &PacketBoxTest,
     t_max: f32,
 ) -> (u32, [f32; 8]) {
-    let mut t_near = [0.0f32; 8];
-    let mut t_far = [t_max; 8];
-    for axis in 0..3 {
-        let near_planes = &node.bounds[packet.near[axis]];
-        let far_planes = &node.bounds[packet.near[axis] ^ 1];
-        let o = packet.origin[axis];
-        let (low, high) = (packet.inv_low[axis], packet.inv_high[axis]);
-        for lane in 0..8 {
-            let (near, far) = (near_planes[lane] - o, far_planes[lane] - o);
-            let (n_low, n_high) = (near * low, near * high);
-            let (f_low, f_high) = (far * low, far * high);
-            let n = if n_low < n_high { n_low } else { n_high };
-            let f = if f_low > f_high { f_low } else { f_high };
-            t_near[lane] = if n > t_near[lane] { n } else { t_near[lane] };
-            t_far[lane] = if f < t_far[lane] { f } else { t_far[lane] };
-        }
-    }
-    let scale = far_scale();
-    let mut mask = 0u32;
-    for lane in 0..8 {
-        mask |= ((t_near[lane] <= t_far[lane] * scale) as u32) << lane;
-    }
-    (mask, t_near)
+    packet_node_test_lanes::<Vec4>(node, packet, t_max)
 }
 
-/// The rays of `packet` that enter child `lane` of `node` before their `t_max` (a bit per
-/// ray; lanes of `t_max` past the rays must hold a negative bound). Each ray's lane computes
-/// what [`node_test`] computes for that ray alone, operation for operation.
+/// [`rays_entering_lanes`] four lanes wide.
 #[inline(always)]
 pub(super) fn rays_entering(
     node: &WideNode,
@@ -217,28 +274,46 @@ pub(super) fn rays_entering(
     packet: &PacketBoxTest,
     t_max: &[f32; PACKET_SIZE],
 ) -> u32 {
-    let mut t_near = [0.0f32; PACKET_SIZE];
-    let mut t_far = *t_max;
-    for axis in 0..3 {
-        let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
-        let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
-        let inv = &packet.inv[axis];
-        for r in 0..PACKET_SIZE {
-            let n = near_plane * inv[r];
-            let f = far_plane * inv[r];
-            t_near[r] = if n > t_near[r] { n } else { t_near[r] };
-            t_far[r] = if f < t_far[r] { f } else { t_far[r] };
-        }
-    }
-    let scale = far_scale();
-    let mut mask = 0u32;
-    for r in 0..PACKET_SIZE {
-        mask |= ((t_near[r] <= t_far[r] * scale) as u32) << r;
-    }
-    mask
+    rays_entering_lanes::<Vec4>(node, lane, packet, t_max)
 }
 
-/// [`rays_entering`] in AVX intrinsics, the same operations in the same order.
+/// [`node_test_lanes`] eight lanes wide, in AVX registers: the whole node in one group.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn node_test_avx2(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
+    struct Test<'a>(&'a WideNode, &'a RayBoxTest, f32);
+    impl LaneKernel for Test<'_> {
+        type Output = (u32, [f32; 8]);
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) -> Self::Output {
+            node_test_lanes::<L>(self.0, self.1, self.2)
+        }
+    }
+    run_avx2(Test(node, ray, t_max))
+}
+
+/// [`packet_node_test_lanes`] eight lanes wide, in AVX registers.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn packet_node_test_avx2(
+    node: &WideNode,
+    packet: &PacketBoxTest,
+    t_max: f32,
+) -> (u32, [f32; 8]) {
+    struct Test<'a>(&'a WideNode, &'a PacketBoxTest, f32);
+    impl LaneKernel for Test<'_> {
+        type Output = (u32, [f32; 8]);
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) -> Self::Output {
+            packet_node_test_lanes::<L>(self.0, self.1, self.2)
+        }
+    }
+    run_avx2(Test(node, packet, t_max))
+}
+
+/// [`rays_entering_lanes`] eight lanes wide, in AVX registers: the packet in two groups.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -248,98 +323,20 @@ pub(super) fn rays_entering_avx2(
     packet: &PacketBoxTest,
     t_max: &[f32; PACKET_SIZE],
 ) -> u32 {
-    use std::arch::x86_64::*;
-    let mut mask = 0u32;
-    for half in 0..PACKET_SIZE / 8 {
-        let at = 8 * half;
-        let mut t_near = _mm256_setzero_ps();
-        // SAFETY: `t_max` holds PACKET_SIZE f32, a multiple of 8.
-        let mut t_far = unsafe { _mm256_loadu_ps(t_max[at..].as_ptr()) };
-        for axis in 0..3 {
-            let near_plane = node.bounds[packet.near[axis]][lane] - packet.origin[axis];
-            let far_plane = node.bounds[packet.near[axis] ^ 1][lane] - packet.origin[axis];
-            // SAFETY: each row of `inv` is PACKET_SIZE f32.
-            let inv = unsafe { _mm256_loadu_ps(packet.inv[axis][at..].as_ptr()) };
-            let n = _mm256_mul_ps(_mm256_set1_ps(near_plane), inv);
-            let f = _mm256_mul_ps(_mm256_set1_ps(far_plane), inv);
-            t_near = _mm256_max_ps(n, t_near);
-            t_far = _mm256_min_ps(f, t_far);
+    struct Test<'a>(
+        &'a WideNode,
+        usize,
+        &'a PacketBoxTest,
+        &'a [f32; PACKET_SIZE],
+    );
+    impl LaneKernel for Test<'_> {
+        type Output = u32;
+        #[inline(always)]
+        fn run<L: Lanes, const W: usize>(self) -> u32 {
+            rays_entering_lanes::<L>(self.0, self.1, self.2, self.3)
         }
-        let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
-        mask |= (_mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32) << at;
     }
-    mask
-}
-
-/// [`packet_node_test`] in AVX intrinsics, the same operations in the same order.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-pub(super) fn packet_node_test_avx2(
-    node: &WideNode,
-    packet: &PacketBoxTest,
-    t_max: f32,
-) -> (u32, [f32; 8]) {
-    use std::arch::x86_64::*;
-    let mut t_near = _mm256_setzero_ps();
-    let mut t_far = _mm256_set1_ps(t_max);
-    for axis in 0..3 {
-        // SAFETY: each row of `bounds` is 8 f32.
-        let (near_planes, far_planes) = unsafe {
-            (
-                _mm256_loadu_ps(node.bounds[packet.near[axis]].as_ptr()),
-                _mm256_loadu_ps(node.bounds[packet.near[axis] ^ 1].as_ptr()),
-            )
-        };
-        let o = _mm256_set1_ps(packet.origin[axis]);
-        let low = _mm256_set1_ps(packet.inv_low[axis]);
-        let high = _mm256_set1_ps(packet.inv_high[axis]);
-        let (near, far) = (_mm256_sub_ps(near_planes, o), _mm256_sub_ps(far_planes, o));
-        let n = _mm256_min_ps(_mm256_mul_ps(near, low), _mm256_mul_ps(near, high));
-        let f = _mm256_max_ps(_mm256_mul_ps(far, low), _mm256_mul_ps(far, high));
-        t_near = _mm256_max_ps(n, t_near);
-        t_far = _mm256_min_ps(f, t_far);
-    }
-    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
-    let mut near = [0.0f32; 8];
-    // SAFETY: `near` holds 8 f32.
-    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), t_near) };
-    (mask, near)
-}
-
-/// [`node_test`] in AVX intrinsics: the same operations in the same order (so the same
-/// results, bit for bit), without the shuffles the compiler adds when it vectorises the
-/// portable form.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-pub(super) fn node_test_avx2(node: &WideNode, ray: &RayBoxTest, t_max: f32) -> (u32, [f32; 8]) {
-    use std::arch::x86_64::*;
-    let mut t_near = _mm256_setzero_ps();
-    let mut t_far = _mm256_set1_ps(t_max);
-    for axis in 0..3 {
-        // SAFETY: each row of `bounds` is 8 f32.
-        let (near_planes, far_planes) = unsafe {
-            (
-                _mm256_loadu_ps(node.bounds[ray.near[axis]].as_ptr()),
-                _mm256_loadu_ps(node.bounds[ray.near[axis] ^ 1].as_ptr()),
-            )
-        };
-        let o = _mm256_set1_ps(ray.origin[axis]);
-        let inv = _mm256_set1_ps(ray.inv_direction[axis]);
-        let n = _mm256_mul_ps(_mm256_sub_ps(near_planes, o), inv);
-        let f = _mm256_mul_ps(_mm256_sub_ps(far_planes, o), inv);
-        // max_ps(a, b) is `a > b ? a : b`, min_ps(a, b) `a < b ? a : b`, as in node_test.
-        t_near = _mm256_max_ps(n, t_near);
-        t_far = _mm256_min_ps(f, t_far);
-    }
-    let far = _mm256_mul_ps(t_far, _mm256_set1_ps(far_scale()));
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
-    let mut near = [0.0f32; 8];
-    // SAFETY: `near` holds 8 f32.
-    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), t_near) };
-    (mask, near)
+    run_avx2(Test(node, lane, packet, t_max))
 }
 
 /// The value of `values` that no other one `replaces`, found as a tree of comparisons (lanes
@@ -448,14 +445,11 @@ mod tests {
         }
     }
 
-    /// The AVX2 node test gives the portable one's answers bit for bit (random boxes, empty
-    /// slots, rays with zero direction components).
-    #[cfg(target_arch = "x86_64")]
+    /// The node test gives the same answers, bit for bit, one lane at a time (`f32`), four
+    /// (`Vec4`, the portable form) and eight (AVX2, where the processor has it): random boxes,
+    /// empty slots, rays with zero direction components.
     #[test]
-    fn the_avx2_node_test_equals_the_portable_one() {
-        if !std::is_x86_feature_detected!("avx2") {
-            return;
-        }
+    fn node_tests_of_every_width_agree() {
         let mut sampler = crate::sampler::Sampler::new(5, 0, 0);
         let mut value = || {
             let u = sampler.next_2d();
@@ -480,18 +474,24 @@ mod tests {
                 value().abs()
             };
             let (mask, near) = node_test(&node, &test, t_max);
-            // SAFETY: AVX2 is present (checked above).
-            let (mask_avx2, near_avx2) = unsafe { node_test_avx2(&node, &test, t_max) };
-            assert_eq!(mask, mask_avx2);
-            assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
+            let (mask_one, near_one) = node_test_lanes::<f32>(&node, &test, t_max);
+            assert_eq!(mask, mask_one, "round {round}");
+            assert_eq!(near.map(f32::to_bits), near_one.map(f32::to_bits));
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 is present (checked just above).
+                let (mask_avx2, near_avx2) = unsafe { node_test_avx2(&node, &test, t_max) };
+                assert_eq!(mask, mask_avx2, "round {round}, AVX2");
+                assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
+            }
         }
     }
 
     /// A packet's node test lets through every child one of its rays' own test lets through,
     /// at a distance no greater than the ray's (so the packet visits every node its rays
-    /// would); the rays found entering a child are those whose own test enters it; the AVX2
-    /// forms give the portable ones' answers bit for bit. Random boxes,
-    /// empty slots, packets from tight (one pixel) to wide, zero direction components.
+    /// would); the rays found entering a child are those whose own test enters it; one lane at
+    /// a time and eight (AVX2) the tests give the portable forms' answers bit for bit. Random
+    /// boxes, empty slots, packets from tight (one pixel) to wide, zero direction components.
     #[test]
     fn packet_node_tests_let_through_what_their_rays_do() {
         let mut sampler = crate::sampler::Sampler::new(17, 0, 0);
@@ -550,6 +550,8 @@ mod tests {
                         m | ((node_test(&node, ray, t).0 >> lane) & 1) << r
                     });
                 assert_eq!(entering, alone, "round {round}, lane {lane}");
+                let one = rays_entering_lanes::<f32>(&node, lane, &packet, &ray_t_max);
+                assert_eq!(one, alone, "round {round}, lane {lane}, one lane at a time");
                 #[cfg(target_arch = "x86_64")]
                 if std::is_x86_feature_detected!("avx2") {
                     // SAFETY: AVX2 is present (checked just above).
@@ -572,12 +574,15 @@ mod tests {
                 passed[0] += ray_mask.count_ones() as usize;
             }
             passed[1] += mask.count_ones() as usize;
+            let (mask_one, near_one) = packet_node_test_lanes::<f32>(&node, &packet, packet_t_max);
+            assert_eq!(mask, mask_one, "round {round}, one lane at a time");
+            assert_eq!(near.map(f32::to_bits), near_one.map(f32::to_bits));
             #[cfg(target_arch = "x86_64")]
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: AVX2 is present (checked just above).
                 let (mask_avx2, near_avx2) =
                     unsafe { packet_node_test_avx2(&node, &packet, packet_t_max) };
-                assert_eq!(mask, mask_avx2);
+                assert_eq!(mask, mask_avx2, "round {round}, AVX2");
                 assert_eq!(near.map(f32::to_bits), near_avx2.map(f32::to_bits));
             }
         }
