@@ -160,30 +160,27 @@ pub(super) fn node_test_lanes<L: Lanes>(
     ray: &RayBoxTest,
     t_max: f32,
 ) -> (u32, [f32; 8]) {
-    let scale = L::splat(far_scale());
-    let (mut mask, mut near) = (0u32, [0.0f32; 8]);
-    for group in 0..8 / L::WIDTH {
-        let at = group * L::WIDTH;
-        let mut t_near = L::splat(0.0);
-        let mut t_far = L::splat(t_max);
-        for axis in 0..3 {
-            let near_planes = L::load(&node.bounds[ray.near[axis]][at..]);
-            let far_planes = L::load(&node.bounds[ray.near[axis] ^ 1][at..]);
-            let (o, inv) = (
-                L::splat(ray.origin[axis]),
-                L::splat(ray.inv_direction[axis]),
-            );
-            let n = (near_planes - o) * inv;
-            let f = (far_planes - o) * inv;
-            // `n > t_near ? n : t_near` and `f < t_far ? f : t_far` (Lanes::max and min, one
-            // maxps and one minps), not f32::max and min, which cost more around NaN.
-            t_near = n.max(t_near);
-            t_far = f.min(t_far);
-        }
-        mask |= t_near.le(t_far * scale).bits() << at;
-        t_near.store(&mut near[at..]);
-    }
-    (mask, near)
+    children_entered(
+        t_max,
+        #[inline(always)]
+        |at, mut t_near: L, mut t_far: L| {
+            for axis in 0..3 {
+                let near_planes = L::load(&node.bounds[ray.near[axis]][at..]);
+                let far_planes = L::load(&node.bounds[ray.near[axis] ^ 1][at..]);
+                let (o, inv) = (
+                    L::splat(ray.origin[axis]),
+                    L::splat(ray.inv_direction[axis]),
+                );
+                let n = (near_planes - o) * inv;
+                let f = (far_planes - o) * inv;
+                // `n > t_near ? n : t_near` and `f < t_far ? f : t_far` (Lanes::max and min, one
+                // maxps and one minps), not f32::max and min, which cost more around NaN.
+                t_near = n.max(t_near);
+                t_far = f.min(t_far);
+            }
+            (t_near, t_far)
+        },
+    )
 }
 
 /// [`node_test_lanes`] for a packet: the children one of its rays may enter before `t_max`
@@ -194,25 +191,44 @@ pub(super) fn packet_node_test_lanes<L: Lanes>(
     packet: &PacketBoxTest,
     t_max: f32,
 ) -> (u32, [f32; 8]) {
+    children_entered(
+        t_max,
+        #[inline(always)]
+        |at, mut t_near: L, mut t_far: L| {
+            for axis in 0..3 {
+                let o = L::splat(packet.origin[axis]);
+                let near = L::load(&node.bounds[packet.near[axis]][at..]) - o;
+                let far = L::load(&node.bounds[packet.near[axis] ^ 1][at..]) - o;
+                let (low, high) = (
+                    L::splat(packet.inv_low[axis]),
+                    L::splat(packet.inv_high[axis]),
+                );
+                let n = (near * low).min(near * high);
+                let f = (far * low).max(far * high);
+                t_near = n.max(t_near);
+                t_far = f.min(t_far);
+            }
+            (t_near, t_far)
+        },
+    )
+}
+
+/// What the node tests share: the eight children in groups of `L::WIDTH` (children `at..at +
+/// L::WIDTH` a group), each group's interval [0, `t_max`] narrowed by `slabs(at, t_near,
+/// t_far)` over the three axes; the children whose interval is not empty, the far end enlarged
+/// by 2γ₃, as a bit mask, and their near distances. Callers mark `slabs` `#[inline(always)]`:
+/// a closure left out of line is compiled without the AVX2 entry point's features, and each of
+/// its lane operations becomes a call (+28 % instructions on Veach).
+#[inline(always)]
+fn children_entered<L: Lanes>(
+    t_max: f32,
+    slabs: impl Fn(usize, L, L) -> (L, L),
+) -> (u32, [f32; 8]) {
     let scale = L::splat(far_scale());
     let (mut mask, mut near) = (0u32, [0.0f32; 8]);
     for group in 0..8 / L::WIDTH {
         let at = group * L::WIDTH;
-        let mut t_near = L::splat(0.0);
-        let mut t_far = L::splat(t_max);
-        for axis in 0..3 {
-            let o = L::splat(packet.origin[axis]);
-            let near = L::load(&node.bounds[packet.near[axis]][at..]) - o;
-            let far = L::load(&node.bounds[packet.near[axis] ^ 1][at..]) - o;
-            let (low, high) = (
-                L::splat(packet.inv_low[axis]),
-                L::splat(packet.inv_high[axis]),
-            );
-            let n = (near * low).min(near * high);
-            let f = (far * low).max(far * high);
-            t_near = n.max(t_near);
-            t_far = f.min(t_far);
-        }
+        let (t_near, t_far) = slabs(at, L::splat(0.0), L::splat(t_max));
         mask |= t_near.le(t_far * scale).bits() << at;
         t_near.store(&mut near[at..]);
     }
