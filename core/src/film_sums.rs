@@ -351,4 +351,39 @@ mod tests {
             assert!(seen.iter().all(|&s| s));
         }
     }
+
+    /// The preview's bytes, made in one walk over the sums, are the display bytes of the film
+    /// the sums resolve to (the PNG a plain render writes), pixel for pixel: on a window of whole
+    /// and partial tiles, with pixels without samples (black) and colours beyond the display's
+    /// range.
+    #[test]
+    fn preview_bytes_are_the_resolved_films() {
+        let window = Window {
+            x: 2,
+            y: 1,
+            width: 40,
+            height: 19,
+        };
+        let mut sums = FilmSums::empty(50, 30, window, 0, false);
+        for p in 0..sums.samples.len() {
+            if p % 7 != 3 {
+                let v = p as f64;
+                sums.samples[p] = 1 + (p % 5) as u32;
+                sums.weight[p] = 0.5 + (p % 3) as f64;
+                sums.color[p] = DVec3::new(v * 1e-3, (v * 0.37).sin().abs(), 2.0 - v * 1e-3);
+            }
+        }
+        let scale = 1.5;
+        let film = sums.resolve_color();
+        let bytes = sums.preview_bytes(scale);
+        assert_eq!(bytes.len(), film.color.len() * 3);
+        for (row, color) in film.color.iter().enumerate() {
+            assert_eq!(
+                bytes[row * 3..row * 3 + 3],
+                image_io::display_bytes(*color, scale),
+                "pixel {row}"
+            );
+        }
+        assert!(bytes.contains(&0) && bytes.contains(&255));
+    }
 }
