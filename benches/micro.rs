@@ -597,7 +597,7 @@ fn alpha_estimator(c: &mut Criterion) {
     let pixel = glam::UVec2::new(160, 150);
     let ray = CameraSample::new(scene, pixel, 0).ray;
     let hit = scene.intersect(&ray).expect("the camera sees a plate");
-    let sp = ShadingPoint::new(scene, hit, -ray.direction);
+    let sp = ShadingPoint::new(scene, &hit, -ray.direction);
     let split = SampleSplit::new(0.5, 64);
     let balance = PerSample(Balance);
     let mut buffers = PhaseBuffers::default();

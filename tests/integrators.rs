@@ -874,7 +874,7 @@ fn a_phase_has_one_record_per_sample_and_contributions_that_add_up() {
     let scene = &loaded.scene;
     let pixel = glam::UVec2::new(160, 150);
     let ray = lumis::integrator::CameraSample::new(scene, pixel, 0).ray;
-    let sp = ShadingPoint::new(scene, scene.intersect(&ray).unwrap(), -ray.direction);
+    let sp = ShadingPoint::new(scene, &scene.intersect(&ray).unwrap(), -ray.direction);
     let split = SampleSplit::new(0.3, 37);
     let mut buffers = PhaseBuffers::default();
     let draw = |buffers: &mut PhaseBuffers, light: usize| {
@@ -929,7 +929,7 @@ fn bsdf_samples_take_a_fixed_count_of_numbers() {
         let Some(hit) = scene.intersect(&sample.ray) else {
             continue;
         };
-        let sp = ShadingPoint::new(scene, hit, -sample.ray.direction);
+        let sp = ShadingPoint::new(scene, &hit, -sample.ray.direction);
         for light in 0..scene.emitters.len() {
             for count in [1, 5] {
                 let mut expected = sample.sampler.clone();
@@ -979,7 +979,7 @@ fn deferred_environment_lookups_give_the_same_records() {
             let Some(hit) = scene.intersect(&sample.ray) else {
                 continue;
             };
-            let sp = ShadingPoint::new(scene, hit, -sample.ray.direction);
+            let sp = ShadingPoint::new(scene, &hit, -sample.ray.direction);
             for densities in [Densities::Lit, Densities::Both] {
                 let (mut a, mut b) = (sample.sampler.clone(), sample.sampler.clone());
                 direct.clear();
@@ -1045,7 +1045,7 @@ fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
     const COUNT: u32 = 8192;
     let records = |scene: &lumis::scene::Scene, light: usize, bsdf_sampling: bool| {
         let ray = lumis::integrator::CameraSample::new(scene, glam::UVec2::new(1, 1), 0).ray;
-        let sp = ShadingPoint::new(scene, scene.intersect(&ray).unwrap(), -ray.direction);
+        let sp = ShadingPoint::new(scene, &scene.intersect(&ray).unwrap(), -ray.direction);
         let mut sampler = lumis::sampler::Sampler::new(11, 12, 13);
         let mut records = Vec::new();
         let both = Densities::Both;

@@ -1049,7 +1049,7 @@ fn the_mixture_samples_its_density() {
         t_max: f32::INFINITY,
     };
     let hit = scene.geometry.intersect(&ray).expect("the floor");
-    let sp = ShadingPoint::new(scene, hit, -ray.direction);
+    let sp = ShadingPoint::new(scene, &hit, -ray.direction);
     let cases: Vec<(usize, f64)> = (0..scene.emitters.len())
         .flat_map(|light| [0.2, 0.5, 0.9].map(|alpha| (light, alpha)))
         .collect();

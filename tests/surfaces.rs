@@ -34,7 +34,7 @@ fn one_point_camera(target: Vec3) -> String {
 /// The surface `ray` meets in `scene`, shaded from where the ray comes.
 fn shading_point(scene: &lumis::scene::Scene, ray: Ray) -> ShadingPoint<'_> {
     let hit = scene.intersect(&ray).expect("the ray meets a surface");
-    ShadingPoint::new(scene, hit, -ray.direction)
+    ShadingPoint::new(scene, &hit, -ray.direction)
 }
 
 fn ray(origin: Vec3, direction: Vec3) -> Ray {

@@ -112,7 +112,7 @@ impl<M: Method> Integrator for MisIntegrator<M> {
             return scene.environment_radiance(ray.direction);
         };
         let mut radiance = emitted(scene, hit, ray.direction);
-        let sp = ShadingPoint::new(scene, *hit, -ray.direction);
+        let sp = ShadingPoint::new(scene, hit, -ray.direction);
         // The method's statistics follow the AOVs' sums.
         let learning = self.method.learning();
         let (aov_sums, learned_sums) = sums.split_at_mut(self.aovs.pixel_sums(scene));
@@ -179,7 +179,7 @@ impl<M: Method> Integrator for MisIntegrator<M> {
                 None => scene.environment_radiance(ray.direction),
                 Some(hit) => {
                     let emitted = emitted(scene, hit, ray.direction);
-                    *point = Some(ShadingPoint::new(scene, *hit, -ray.direction));
+                    *point = Some(ShadingPoint::new(scene, hit, -ray.direction));
                     emitted
                 }
             };

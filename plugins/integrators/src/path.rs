@@ -1077,7 +1077,7 @@ impl Integrator for Path {
                 if depth >= self.max_depth {
                     break;
                 }
-                let sp = ShadingPoint::new(scene, hit, -ray.direction);
+                let sp = ShadingPoint::new(scene, &hit, -ray.direction);
                 // The next vertex is worth reaching if it will sample lights.
                 let goes_on = depth + 1 < self.max_depth && depth + 1 < MAX_VERTICES;
                 if self.mixes_at(depth, &sp) {

@@ -160,7 +160,7 @@ pub fn run<T: Clone + Default + Send + Sync>(
 fn first_surface(scene: &Scene, pixel: UVec2) -> Option<(ShadingPoint<'_>, Surface)> {
     let ray = CameraSample::new(scene, pixel, 0).ray;
     let hit = scene.intersect(&ray)?;
-    let point = ShadingPoint::new(scene, hit, -ray.direction);
+    let point = ShadingPoint::new(scene, &hit, -ray.direction);
     let surface = Surface {
         bsdf: scene.shape_bsdf[hit.shape as usize][point.ctx.side as usize],
         normal: point.frame.to_world(Vec3::Z),
@@ -285,7 +285,7 @@ pub fn measure_costs(scene: &Scene, grid: u32, batch: u32) -> Vec<Option<SampleC
     let mut records = Vec::with_capacity(batch as usize);
     for round in 0..2 {
         for (k, (pixel, hit, direction)) in points.iter().enumerate() {
-            let point = ShadingPoint::new(scene, *hit, -*direction);
+            let point = ShadingPoint::new(scene, hit, -*direction);
             let mut sampler = pilot_sampler(scene, *pixel);
             for (light, emitter) in scene.emitters.iter().enumerate() {
                 if emitter.is_delta() {
