@@ -119,10 +119,13 @@ impl<'a> ShadingPoint<'a> {
         } else {
             (height > 0.0, height)
         };
-        // The distance (a square root) only where the sample is on a side it may light.
+        // Squared (both sides are non-negative): a square root's latency held up every light
+        // sample that passed the side test.
         facing
             && !sample.position.is_some_and(|p| {
-                distance_from_plane * (p - self.hit.position).length() <= self.plane_error
+                let distance_squared = (p - self.hit.position).length_squared();
+                distance_from_plane * distance_from_plane * distance_squared
+                    <= self.plane_error * self.plane_error
             })
     }
 
