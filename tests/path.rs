@@ -1116,8 +1116,9 @@ fn the_mixture_chooses_lights_by_weight_with_the_same_mean() {
 /// gives what shading them one by one gives, bit for bit: each sample's colour and its pixel's
 /// sums. On the path scenes and on scenes of area, sphere, delta and environment lights and
 /// several materials (glass, mirrors, glossy), with every light or one chosen per vertex, hidden
-/// emitters, optimal MIS, an adaptive first allocation, N that fills the lanes (point by point),
-/// short paths and early roulette; packets of 16 traced samples and of 5 untraced ones.
+/// emitters, optimal MIS, adaptive first allocations (pilots included), N that fills the lanes
+/// (point by point), short paths and early roulette; packets of 16 traced samples and of 5
+/// untraced ones.
 #[test]
 fn a_packet_shaded_together_gives_what_one_by_one_gives() {
     use lumis::integrator::{CameraSample, PacketSums};
@@ -1130,6 +1131,8 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
         &["allocation=\"alpha\"", "samples=8", "deep_samples=1"],
         &["samples=16", "deep_samples=3", "max_depth=3"],
         &["weighting=\"balance\"", "fixed=0", "lights=\"one\""],
+        &["allocation=\"variance_aware\"", "block=4", "samples=8"],
+        &["allocation=\"pooled_alpha\"", "samples=8", "max_depth=4"],
     ];
     let (mut compared, mut lit) = (0, 0);
     for file in [

@@ -720,7 +720,8 @@ struct WavePath {
 }
 
 /// A packet's paths advanced as a wave, made once per packet and written in place at each
-/// vertex depth (arrays of shading points made anew were copied whole). Path k is camera
+/// vertex depth (made anew at each depth with `array::from_fn`, its arrays were copied whole:
+/// 8 % more instructions on cornell-bounce). Path k is camera
 /// sample k's; at the current depth, member i is the i-th live path, sample `owners[i]`, at
 /// shading point `points[i]`, its continuation in `slots[i]`.
 struct Wave<'a> {
