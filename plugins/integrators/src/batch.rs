@@ -76,7 +76,7 @@ impl BatchScratch {
 
     /// The BSDF samples of the entries in `bsdf_numbers`, with `contexts` and `wo`, into
     /// `bsdf_samples`: one batch call per run of consecutive entries whose shading points
-    /// (`owner`'s) share a BSDF.
+    /// (`owner`'s) share a BSDF, the scalar call for a run of one.
     pub(crate) fn sample_bsdfs<'a>(&mut self, bsdf_of: impl Fn(usize) -> &'a dyn Bsdf) {
         self.bsdf_samples.resize(self.bsdf_numbers.len(), None);
         for_runs(&self.owners, &bsdf_of, |bsdf, run| {
@@ -101,7 +101,8 @@ impl BatchScratch {
     /// The light samples of the entries in `light_numbers` from `references`, into
     /// `light_samples`, and the BSDF toward each (`directions` in its shading point's frame,
     /// `frame_of(owner)`), into `values`: one batch call for the light, one per run of
-    /// consecutive entries whose shading points share a BSDF for the BSDF.
+    /// consecutive entries whose shading points share a BSDF for the BSDF (the scalar call for
+    /// a run of one).
     pub(crate) fn sample_light<'a>(
         &mut self,
         emitter: &dyn Emitter,
