@@ -1110,3 +1110,111 @@ fn the_mixture_chooses_lights_by_weight_with_the_same_mean() {
     assert!(t.abs() < limit, "t = {t}, seed {}", test_seed());
     assert!(detected <= 0.02, "detects only {:.2} %", 100.0 * detected);
 }
+
+/// A packet of camera samples shaded together (`Integrator::shade_together`, which `path`
+/// runs as a wave: each vertex depth's lights drawn together for the packet's live paths)
+/// gives what shading them one by one gives, bit for bit: each sample's colour and its pixel's
+/// sums. On the path scenes and on scenes of area, sphere, delta and environment lights and
+/// several materials (glass, mirrors, glossy), with every light or one chosen per vertex, hidden
+/// emitters, optimal MIS, adaptive first allocations (pilots included), N that fills the lanes
+/// (point by point), short paths and early roulette; packets of 16 traced samples and of 5
+/// untraced ones.
+#[test]
+fn a_packet_shaded_together_gives_what_one_by_one_gives() {
+    use lumis::integrator::{CameraSample, PacketSums};
+    use lumis::math::Rgb;
+    let configurations: &[&[&str]] = &[
+        &[],
+        &["lights=\"one\"", "max_depth=7"],
+        &["hide_emitters=true", "rr_depth=1"],
+        &["weighting=\"optimal_mis\"", "samples=4", "deep_samples=4"],
+        &["allocation=\"alpha\"", "samples=8", "deep_samples=1"],
+        &["samples=16", "deep_samples=3", "max_depth=3"],
+        &["weighting=\"balance\"", "fixed=0", "lights=\"one\""],
+        &["allocation=\"variance_aware\"", "block=4", "samples=8"],
+        &["allocation=\"pooled_alpha\"", "samples=8", "max_depth=4"],
+    ];
+    let (mut compared, mut lit) = (0, 0);
+    for file in [
+        "scenes/cornell-bounce.ron",
+        "scenes/cornell-glass.ron",
+        "scenes/cornell-glossy.ron",
+        "scenes/materials.ron",
+        "scenes/lights.ron",
+        "scenes/envmap.ron",
+    ] {
+        let path = repo_path(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let film = ["film.width=16", "film.height=12"];
+        let loaded = common::load(&path, &film).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let scene = &loaded.scene;
+        // Every 5th pixel, over the whole film.
+        let pixels: Vec<glam::UVec2> = (0..scene.width * scene.height)
+            .step_by(5)
+            .map(|i| glam::UVec2::new(i % scene.width, i / scene.width))
+            .collect();
+        for configuration in configurations {
+            let overrides: Vec<String> = film
+                .iter()
+                .map(|o| o.to_string())
+                .chain(["integrator.type=\"path\"".to_string()])
+                .chain(configuration.iter().map(|o| format!("integrator.{o}")))
+                .collect();
+            let description = lumis::scene::load::parse_description(&path, &text, &overrides)
+                .unwrap_or_else(|e| panic!("{file}: {e}"));
+            let mut built = lumis::scene::load::build_integrator(
+                &description.integrator,
+                path.parent().unwrap(),
+            )
+            .unwrap_or_else(|e| panic!("{file} with {configuration:?}: {e}"));
+            built.preprocess(scene);
+            let stride = built.pixel_sums(scene);
+            let name = format!("{file}, {configuration:?}");
+            for &pixel in &pixels {
+                for indices in [0..16, 16..21] {
+                    let packet = |traced: bool| -> Vec<CameraSample> {
+                        let mut samples: Vec<CameraSample> = indices
+                            .clone()
+                            .map(|s| CameraSample::new(scene, pixel, s))
+                            .collect();
+                        if traced {
+                            CameraSample::trace_together(scene, &mut samples);
+                        }
+                        samples
+                    };
+                    let traced = indices.len() == 16;
+                    let (mut alone, mut together) = (packet(true), packet(traced));
+                    let mut sums_alone = vec![0.0; stride];
+                    let expected: Vec<Rgb> = alone
+                        .iter_mut()
+                        .map(|s| built.shade(scene, s, &mut sums_alone))
+                        .collect();
+                    let mut sums_together = vec![0.0; stride];
+                    let mut radiance = vec![Rgb::ZERO; together.len()];
+                    let mut sums = PacketSums::one_pixel(&mut sums_together, together.len());
+                    built.shade_together(scene, &mut together, &mut sums, &mut radiance);
+                    let bits = |v: &[Rgb]| -> Vec<[u32; 3]> {
+                        v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
+                    };
+                    assert_eq!(bits(&radiance), bits(&expected), "{name}, pixel {pixel}");
+                    let sum_bits =
+                        |v: &[f64]| -> Vec<u64> { v.iter().map(|x| x.to_bits()).collect() };
+                    assert_eq!(
+                        sum_bits(&sums_together),
+                        sum_bits(&sums_alone),
+                        "{name}: sums"
+                    );
+                    // Each sample's stream is where `shade` left it.
+                    let next: Vec<f32> = together.iter_mut().map(|s| s.sampler.next_1d()).collect();
+                    let next_alone: Vec<f32> =
+                        alone.iter_mut().map(|s| s.sampler.next_1d()).collect();
+                    assert_eq!(next, next_alone, "{name}, pixel {pixel}: streams");
+                    compared += 1;
+                    lit += expected.iter().filter(|c| c.max_element() > 0.0).count();
+                }
+            }
+        }
+    }
+    assert!(compared > 1_000, "{compared} packets");
+    assert!(lit > 10_000, "{lit} lit samples");
+}

@@ -6,7 +6,9 @@
 //! drawn at the vertex (a sample of the estimate, so the ray that found the emission is the ray
 //! the path follows), or along a BSDF sample of its own where no estimate drew one; emission is
 //! added only where the camera ray meets it directly. docs/integrators.md has the formulas and
-//! the argument that the estimate is unbiased.
+//! the argument that the estimate is unbiased. A packet of camera samples is shaded as a wave,
+//! vertex depth by vertex depth, each light's estimates drawn together for the live paths
+//! ([`Integrator::shade_together`]), bit for bit what shading each path alone gives.
 //!
 //! Parameters:
 //! - `max_depth` (integer, default -1, in [-1, 2147483647]): the longest path, in segments,
@@ -61,9 +63,9 @@
 //!   vertex, as the direct integrators write them) and "depth_samples" (the samples drawn at
 //!   each vertex depth, channels d1 … d7 and d8plus, summed over the pixel's camera samples).
 //!
-//! Why one file of over 600 lines: one plugin, one file: the path loop, its per-vertex estimates
-//! (the split and the one-sample mixture), light choice, roulette and the depth AOV, with its
-//! tests; the mixture's cache is [`crate::vertex_cache`].
+//! Why one file of over 600 lines: one plugin, one file: the path loop and its wave over a
+//! packet, its per-vertex estimates (the split and the one-sample mixture), light choice,
+//! roulette and the depth AOV, with its tests; the mixture's cache is [`crate::vertex_cache`].
 
 use crate::allocation::{Method, Weighted};
 use crate::alpha_family::{
@@ -77,6 +79,7 @@ use crate::fixed_alpha::FixedAlpha;
 use crate::max::Maximum;
 use crate::mis::{SAMPLES_SPEC, read_samples};
 use crate::optimal_mis::Progressive;
+use crate::phase::LightEstimate;
 use crate::power::Power;
 use crate::sampling::{LightSampling, PhaseBuffers};
 use crate::shading_point::ShadingPoint;
@@ -87,8 +90,8 @@ use crate::{
     variance_aware,
 };
 use lumis_core::emitter::ReferencePoint;
-use lumis_core::geometry::{Intersection, Ray};
-use lumis_core::integrator::{CameraSample, Integrator};
+use lumis_core::geometry::{Intersection, PACKET_SIZE, Ray};
+use lumis_core::integrator::{CameraSample, Integrator, PacketSums, shade_one_by_one};
 use lumis_core::math::{Rgb, luminance};
 use lumis_core::output::Aov;
 use lumis_core::params::{ParamKind, ParamSpec, Params, PluginError};
@@ -562,6 +565,7 @@ fn create(params: &mut Params) -> Result<Box<dyn Integrator>, PluginError> {
 
 /// What a path has gathered and carries: the radiance so far, the throughput of its vertices'
 /// samples, and the product of their relative indices of refraction.
+#[derive(Clone, Copy)]
 struct PathState {
     radiance: Rgb,
     throughput: Rgb,
@@ -701,6 +705,236 @@ impl Path {
             }
         }
         estimate.value
+    }
+}
+
+/// One camera sample's path in a packet's wave ([`Integrator::shade_together`]): what it
+/// gathered, the surface it reached and the ray that reached it.
+#[derive(Clone, Copy)]
+struct WavePath {
+    state: PathState,
+    hit: Intersection,
+    ray: Ray,
+    /// Whether its first vertex is the first surface the camera ray met (no emitter hidden).
+    primary: bool,
+}
+
+/// A packet's paths advanced as a wave, made once per packet and written in place at each
+/// vertex depth (made anew at each depth with `array::from_fn`, its arrays were copied whole:
+/// 8 % more instructions on cornell-bounce). Path k is camera
+/// sample k's; at the current depth, member i is the i-th live path, sample `owners[i]`, at
+/// shading point `points[i]`, its continuation in `slots[i]`.
+struct Wave<'a> {
+    paths: [Option<WavePath>; PACKET_SIZE],
+    /// Whether path k reached the current depth.
+    live: [bool; PACKET_SIZE],
+    count: usize,
+    owners: [usize; PACKET_SIZE],
+    points: [Option<ShadingPoint<'a>>; PACKET_SIZE],
+    primary: [bool; PACKET_SIZE],
+    slots: [ContinuationSlot; PACKET_SIZE],
+}
+
+impl Default for Wave<'_> {
+    fn default() -> Self {
+        Wave {
+            paths: [None; PACKET_SIZE],
+            live: [false; PACKET_SIZE],
+            count: 0,
+            owners: [0; PACKET_SIZE],
+            points: Default::default(),
+            primary: [false; PACKET_SIZE],
+            slots: [ContinuationSlot::NotWanted; PACKET_SIZE],
+        }
+    }
+}
+
+/// The wave's members' camera samples, member i's at index i.
+type Members<'s> = [Option<&'s mut CameraSample>; PACKET_SIZE];
+
+impl Path {
+    /// Vertex `depth` of the wave's live paths, as `shade` runs it for each: the lights'
+    /// estimates, drawn together for all the paths, then each path's continuation, roulette
+    /// and next surface. A path that ends there is no longer live.
+    fn wave_vertex<'a>(
+        &self,
+        scene: &'a Scene,
+        depth: u32,
+        samples: &mut [CameraSample],
+        wave: &mut Wave<'a>,
+        buffers: &mut [PhaseBuffers; PACKET_SIZE],
+    ) {
+        // The next vertex is worth reaching if it will sample lights.
+        let goes_on = depth + 1 < self.max_depth && depth + 1 < MAX_VERTICES;
+        let mut members: Members = [const { None }; PACKET_SIZE];
+        let mut count = 0;
+        let live = samples.iter_mut().zip(&wave.live).enumerate();
+        for (k, sample) in live.filter_map(|(k, (sample, &live))| live.then_some((k, sample))) {
+            let Some(path) = &wave.paths[k] else { continue };
+            wave.owners[count] = k;
+            wave.points[count] = Some(ShadingPoint::new(scene, path.hit, -path.ray.direction));
+            wave.primary[count] = depth == 1 && path.primary;
+            wave.slots[count] = if goes_on {
+                ContinuationSlot::Wanted
+            } else {
+                ContinuationSlot::NotWanted
+            };
+            members[count] = Some(sample);
+            count += 1;
+        }
+        wave.count = count;
+        let lights = scene.emitters.len();
+        match self.lights {
+            Lights::All => {
+                for light in 0..lights {
+                    let each = |_| Some(None);
+                    self.light_together(scene, light, depth, &mut members, wave, buffers, each);
+                }
+            }
+            Lights::One if lights > 0 => {
+                // Each path's light, drawn first at the vertex as `shade` draws it; the paths
+                // that chose one light are estimated together.
+                let mut choices = [(0, 0.0); PACKET_SIZE];
+                for (choice, sample) in choices.iter_mut().zip(members.iter_mut().flatten()) {
+                    *choice = choose_light(&self.light_cdf, sample.sampler.next_1d(), lights);
+                }
+                let mut chosen = [0; PACKET_SIZE];
+                for (chosen, &(light, _)) in chosen.iter_mut().zip(&choices) {
+                    *chosen = light;
+                }
+                chosen[..count].sort_unstable();
+                let mut previous = None;
+                for &light in &chosen[..count] {
+                    if previous == Some(light) {
+                        continue;
+                    }
+                    previous = Some(light);
+                    let those = |i: usize| {
+                        let (chosen, inverse_probability) = choices[i];
+                        (chosen == light).then_some(Some(inverse_probability))
+                    };
+                    self.light_together(scene, light, depth, &mut members, wave, buffers, those);
+                }
+            }
+            Lights::One => {}
+        }
+        let Wave {
+            paths,
+            live,
+            owners,
+            points,
+            slots,
+            ..
+        } = wave;
+        for (((&k, sample), sp), slot) in owners
+            .iter()
+            .zip(&mut members)
+            .zip(&*points)
+            .zip(&*slots)
+            .take(count)
+        {
+            live[k] = false;
+            let (Some(sample), Some(sp), Some(path)) = (sample, sp, paths[k].as_mut()) else {
+                continue;
+            };
+            let continuation = match *slot {
+                ContinuationSlot::NotWanted => continue,
+                ContinuationSlot::Drawn(continuation) => continuation,
+                // No estimate drew a BSDF sample: one of the path's own.
+                ContinuationSlot::Wanted => draw_continuation(scene, sp, &mut sample.sampler),
+            };
+            let Some(continuation) = continuation else {
+                continue;
+            };
+            path.state.throughput *= continuation.sample.weight;
+            path.state.eta *= continuation.sample.eta;
+            if !self.roulette(depth, &mut path.state, sample) {
+                continue;
+            }
+            let Some(next) = continuation.hit else {
+                continue;
+            };
+            path.hit = next;
+            path.ray = continuation.ray;
+            live[k] = true;
+        }
+    }
+
+    /// Light `light`'s estimates at vertex `depth` of the wave's members that `weight_of(i)`
+    /// takes (`Some`), drawn together for a non-delta light, each added to its path times the
+    /// weight it gives (`Some(1 / probability)` for a light chosen at random; `None`: as is).
+    #[allow(clippy::too_many_arguments)]
+    fn light_together(
+        &self,
+        scene: &Scene,
+        light: usize,
+        depth: u32,
+        members: &mut Members<'_>,
+        wave: &mut Wave<'_>,
+        buffers: &mut [PhaseBuffers; PACKET_SIZE],
+        weight_of: impl Fn(usize) -> Option<Option<f32>>,
+    ) {
+        let Wave {
+            paths,
+            count,
+            owners,
+            points,
+            primary,
+            slots,
+            ..
+        } = wave;
+        let count = *count;
+        let add = |path: &mut Option<WavePath>, value: Rgb, weight: Option<f32>| {
+            if let Some(path) = path {
+                path.state.add(weight.map_or(value, |w| value * w));
+            }
+        };
+        if scene.emitters[light].is_delta() {
+            let each = members.iter_mut().zip(points.iter()).take(count);
+            for (i, (sample, point)) in each.enumerate() {
+                let (Some(weight), Some(sample), Some(sp)) = (weight_of(i), sample, point) else {
+                    continue;
+                };
+                let value = estimate_delta_light(scene, sp, light, &mut sample.sampler);
+                add(&mut paths[owners[i]], value, weight);
+            }
+            return;
+        }
+        let method = if depth == 1 {
+            &self.first
+        } else {
+            &self.deeper
+        };
+        // The members estimated, in order: sampling j is member `estimated[j]`.
+        let mut estimated = [0; PACKET_SIZE];
+        let mut samplings: [Option<LightSampling>; PACKET_SIZE] = [const { None }; PACKET_SIZE];
+        let mut samplings_count = 0;
+        let taken = members.iter_mut().zip(points.iter()).zip(slots.iter_mut());
+        let each = taken.zip(primary.iter()).take(count).enumerate();
+        for ((i, (((sample, point), slot), &primary)), buffers) in each.zip(buffers.iter_mut()) {
+            let (Some(sample), Some(sp)) = (sample.as_deref_mut(), point.as_ref()) else {
+                continue;
+            };
+            if weight_of(i).is_none() {
+                continue;
+            }
+            let sampler = &mut sample.sampler;
+            let sampling = LightSampling::new(scene, sp, light, sample.pixel, sampler, buffers)
+                .with_camera_sample(sample.index)
+                .at_vertex(depth, primary)
+                .with_continuation(slot);
+            estimated[samplings_count] = i;
+            samplings[samplings_count] = Some(sampling);
+            samplings_count += 1;
+        }
+        let n = samplings_count;
+        let mut estimates = [LightEstimate::default(); PACKET_SIZE];
+        method.estimate_together(&mut samplings[..n], &mut estimates[..n]);
+        for (&i, estimate) in estimated.iter().zip(&estimates).take(n) {
+            if let Some(weight) = weight_of(i) {
+                add(&mut paths[owners[i]], estimate.value, weight);
+            }
+        }
     }
 }
 
@@ -1143,6 +1377,81 @@ impl Integrator for Path {
             self.record(&mut recording.pending[..recording.count], path.radiance);
         }
         path.radiance
+    }
+
+    /// The packet's paths advanced as a wave, vertex depth by vertex depth
+    /// ([`wave_vertex`](Path::wave_vertex)): at each depth every light's estimates at all the
+    /// live paths' shading points are drawn together ([`Method::estimate_together`], each path
+    /// taking its continuation from its first BSDF sample there, as `shade` does), then each
+    /// path goes on or ends. Each path draws from its own stream in the order `shade` draws, so
+    /// each sample gets what `shade` gives, bit for bit. One by one, through `shade`: with AOVs
+    /// (their sums), with a deeper mixture (its vertices, the cache's records, are drawn per
+    /// path), with an allocation that learns, at `max_depth` 0, and for a packet of one, which
+    /// has nothing to share.
+    fn shade_together(
+        &self,
+        scene: &Scene,
+        samples: &mut [CameraSample],
+        sums: &mut PacketSums<'_>,
+        radiance: &mut [Rgb],
+    ) {
+        if self.aovs.first.any()
+            || self.aovs.depth_samples
+            || self.deep != Deep::Split
+            || self.first.learning()
+            || self.deeper.learning()
+            || self.max_depth == 0
+            || samples.len() == 1
+            || samples.len() > PACKET_SIZE
+        {
+            return shade_one_by_one(self, scene, samples, sums, radiance);
+        }
+        assert_eq!(samples.len(), radiance.len(), "one estimate per sample");
+        let mut wave = Wave::default();
+        let started = samples.iter().zip(radiance.iter_mut());
+        for (k, (sample, radiance)) in started.enumerate() {
+            let mut traced_now = None;
+            let hit = sample.hit(scene, &mut traced_now).copied();
+            let (ray, hit, hidden) = self.first_surface(scene, sample.ray, hit);
+            let Some(hit) = hit else {
+                *radiance = if self.hide_emitters {
+                    Rgb::ZERO
+                } else {
+                    scene.environment_radiance(ray.direction)
+                };
+                continue;
+            };
+            let state = PathState {
+                radiance: if self.hide_emitters {
+                    Rgb::ZERO
+                } else {
+                    emitted(scene, &hit, ray.direction)
+                },
+                throughput: Rgb::ONE,
+                eta: 1.0,
+            };
+            wave.paths[k] = Some(WavePath {
+                state,
+                hit,
+                ray,
+                primary: !hidden,
+            });
+            wave.live[k] = true;
+        }
+        PhaseBuffers::with_thread_local_packet(|buffers| {
+            // Mitsuba's vertex d − 1 samples lights when d < max_depth.
+            for depth in 1..MAX_VERTICES.min(self.max_depth) {
+                if !wave.live.contains(&true) {
+                    break;
+                }
+                self.wave_vertex(scene, depth, samples, &mut wave, buffers);
+            }
+        });
+        for (path, radiance) in wave.paths.iter().zip(radiance) {
+            if let Some(path) = path {
+                *radiance = path.state.radiance;
+            }
+        }
     }
 
     fn resolve(&self, scene: &Scene, sums: &[f64], _samples: u32, aovs: &mut [f32]) {

@@ -118,8 +118,9 @@ impl<'a> LightSampling<'a> {
     }
 
     /// Takes a path's continuation from the first BSDF sample drawn while `slot` is
-    /// [`ContinuationSlot::Wanted`] ([`phase`](Self::phase)): its ray is traced to the closest
-    /// surface, and its record is the one it would have had.
+    /// [`ContinuationSlot::Wanted`] ([`phase`](Self::phase), and alike
+    /// [`phases_together`](Self::phases_together)): its ray is traced to the closest surface,
+    /// and its record is the one it would have had.
     pub fn with_continuation(self, slot: &'a mut ContinuationSlot) -> Self {
         LightSampling {
             continuation: Some(slot),
@@ -274,7 +275,9 @@ impl<'a> LightSampling<'a> {
     /// whose estimate goes to `values[k]` (`None` entries skipped). The samples are drawn with
     /// one batch call per technique for all the points (for the BSDF, one per run of points
     /// that share a BSDF), each from its own stream in the order `phase` draws it, so that
-    /// every sampling gets what `phase` would give it, bit for bit.
+    /// every sampling gets what `phase` would give it, bit for bit: a sampling whose
+    /// continuation slot is wanted takes its first BSDF sample as the path's continuation, as
+    /// `phase` does.
     pub fn phases_together<W: Weighting + ?Sized, O: Observer>(
         samplings: &mut [Option<LightSampling>],
         splits: &[SampleSplit],
@@ -320,11 +323,17 @@ impl<'a> LightSampling<'a> {
                 let PhaseBuffers {
                     records, deferred, ..
                 } = &mut *sampling.buffers;
-                BsdfRecords::new(scene, sampling.point, light, densities).push_any(
-                    s.as_ref(),
-                    records,
-                    Some(deferred),
-                );
+                let bsdf_records = BsdfRecords::new(scene, sampling.point, light, densities);
+                match sampling.continuation.as_deref_mut() {
+                    // A point's first BSDF sample, the one `phase` would take (the slot is
+                    // then drawn, and its later samples are not).
+                    Some(slot) if slot.is_wanted() => {
+                        let continuation =
+                            bsdf_records.push_continuing(s.as_ref(), records, Some(deferred));
+                        *slot = ContinuationSlot::Drawn(continuation);
+                    }
+                    _ => bsdf_records.push_any(s.as_ref(), records, Some(deferred)),
+                }
             }
             scratch.owners.clear();
             scratch.wo.clear();
