@@ -772,7 +772,7 @@ impl Path {
         for (k, sample) in live.filter_map(|(k, (sample, &live))| live.then_some((k, sample))) {
             let Some(path) = &wave.paths[k] else { continue };
             wave.owners[count] = k;
-            wave.points[count] = Some(ShadingPoint::new(scene, path.hit, -path.ray.direction));
+            wave.points[count] = Some(ShadingPoint::new(scene, &path.hit, -path.ray.direction));
             wave.primary[count] = depth == 1 && path.primary;
             wave.slots[count] = if goes_on {
                 ContinuationSlot::Wanted
