@@ -1102,7 +1102,6 @@ fn occluded_samples_keep_the_densities_of_the_unoccluded_ones() {
 /// whose samples meet different BSDFs, and samples that miss everything).
 #[test]
 fn a_packet_shaded_together_gives_what_one_by_one_gives() {
-    use lumis::integrator::CameraSample;
     let (mut mixed_materials, mut with_misses, mut compared) = (0, 0, 0);
     for file in [
         "scenes/cornell.ron",
@@ -1150,47 +1149,12 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
                 )
                 .unwrap_or_else(|e| panic!("{file} with {integrator}: {e}"));
                 built.preprocess(scene);
-                let stride = built.pixel_sums(scene);
                 let name = format!("{file}, {integrator}, N = {n}, AOVs {aovs}");
                 for &pixel in &pixels {
                     for indices in [0..16, 16..21] {
-                        let packet = |traced: bool| -> Vec<CameraSample> {
-                            let mut samples: Vec<CameraSample> = indices
-                                .clone()
-                                .map(|s| CameraSample::new(scene, pixel, s))
-                                .collect();
-                            if traced {
-                                CameraSample::trace_together(scene, &mut samples);
-                            }
-                            samples
-                        };
-                        // The shorter packets' primary rays are left for the integrator to
-                        // trace, which it must do as `trace_together` would.
-                        let traced = indices.len() == 16;
-                        let (mut alone, mut together) = (packet(true), packet(traced));
-                        let mut sums_alone = vec![0.0; stride];
-                        let expected: Vec<lumis::math::Rgb> = alone
-                            .iter_mut()
-                            .map(|s| built.shade(scene, s, &mut sums_alone))
-                            .collect();
-                        let mut sums_together = vec![0.0; stride];
-                        let mut radiance = vec![lumis::math::Rgb::ZERO; together.len()];
-                        let mut sums = lumis::integrator::PacketSums::one_pixel(
-                            &mut sums_together,
-                            together.len(),
-                        );
-                        built.shade_together(scene, &mut together, &mut sums, &mut radiance);
-                        let bits = |v: &[lumis::math::Rgb]| -> Vec<[u32; 3]> {
-                            v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
-                        };
-                        assert_eq!(bits(&radiance), bits(&expected), "{name}, pixel {pixel}");
-                        let sum_bits =
-                            |v: &[f64]| -> Vec<u64> { v.iter().map(|x| x.to_bits()).collect() };
-                        assert_eq!(
-                            sum_bits(&sums_together),
-                            sum_bits(&sums_alone),
-                            "{name}, pixel {pixel}: sums"
-                        );
+                        let shaded =
+                            common::shade_packet_both_ways(scene, &*built, pixel, indices, &name);
+                        let alone = shaded.alone;
                         compared += 1;
                         let hits: Vec<_> = alone.iter().map(|s| s.intersect(scene)).collect();
                         with_misses += hits.iter().any(|h| h.is_none()) as u32;

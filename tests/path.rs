@@ -1121,8 +1121,6 @@ fn the_mixture_chooses_lights_by_weight_with_the_same_mean() {
 /// untraced ones.
 #[test]
 fn a_packet_shaded_together_gives_what_one_by_one_gives() {
-    use lumis::integrator::{CameraSample, PacketSums};
-    use lumis::math::Rgb;
     let configurations: &[&[&str]] = &[
         &[],
         &["lights=\"one\"", "max_depth=7"],
@@ -1168,42 +1166,13 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
             )
             .unwrap_or_else(|e| panic!("{file} with {configuration:?}: {e}"));
             built.preprocess(scene);
-            let stride = built.pixel_sums(scene);
             let name = format!("{file}, {configuration:?}");
             for &pixel in &pixels {
                 for indices in [0..16, 16..21] {
-                    let packet = |traced: bool| -> Vec<CameraSample> {
-                        let mut samples: Vec<CameraSample> = indices
-                            .clone()
-                            .map(|s| CameraSample::new(scene, pixel, s))
-                            .collect();
-                        if traced {
-                            CameraSample::trace_together(scene, &mut samples);
-                        }
-                        samples
-                    };
-                    let traced = indices.len() == 16;
-                    let (mut alone, mut together) = (packet(true), packet(traced));
-                    let mut sums_alone = vec![0.0; stride];
-                    let expected: Vec<Rgb> = alone
-                        .iter_mut()
-                        .map(|s| built.shade(scene, s, &mut sums_alone))
-                        .collect();
-                    let mut sums_together = vec![0.0; stride];
-                    let mut radiance = vec![Rgb::ZERO; together.len()];
-                    let mut sums = PacketSums::one_pixel(&mut sums_together, together.len());
-                    built.shade_together(scene, &mut together, &mut sums, &mut radiance);
-                    let bits = |v: &[Rgb]| -> Vec<[u32; 3]> {
-                        v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
-                    };
-                    assert_eq!(bits(&radiance), bits(&expected), "{name}, pixel {pixel}");
-                    let sum_bits =
-                        |v: &[f64]| -> Vec<u64> { v.iter().map(|x| x.to_bits()).collect() };
-                    assert_eq!(
-                        sum_bits(&sums_together),
-                        sum_bits(&sums_alone),
-                        "{name}: sums"
-                    );
+                    let shaded =
+                        common::shade_packet_both_ways(scene, &*built, pixel, indices, &name);
+                    let (mut alone, mut together) = (shaded.alone, shaded.together);
+                    let expected = shaded.expected;
                     // Each sample's stream is where `shade` left it.
                     let next: Vec<f32> = together.iter_mut().map(|s| s.sampler.next_1d()).collect();
                     let next_alone: Vec<f32> =

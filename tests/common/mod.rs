@@ -184,3 +184,63 @@ pub fn run_passes(
     )
     .expect("render")
 }
+
+/// A packet of camera samples shaded both ways ([`shade_packet_both_ways`]): the samples as
+/// `shade` one by one left them, as `shade_together` left them, and the colours `shade` gave.
+pub struct PacketShadedBothWays {
+    pub alone: Vec<lumis::integrator::CameraSample>,
+    pub together: Vec<lumis::integrator::CameraSample>,
+    pub expected: Vec<lumis::math::Rgb>,
+}
+
+/// Shades camera samples `indices` of `pixel` with `integrator` one by one (`shade`, their
+/// primary rays traced together first) and as one packet (`shade_together`; the rays traced
+/// beforehand only for a packet of 16: a shorter packet's are left for the integrator to trace,
+/// which it must do as `trace_together` would), and asserts that both ways give the same
+/// colours and pixel sums, bit for bit (`name` names the case in the messages).
+pub fn shade_packet_both_ways(
+    scene: &lumis::scene::Scene,
+    integrator: &dyn lumis::integrator::Integrator,
+    pixel: glam::UVec2,
+    indices: std::ops::Range<u32>,
+    name: &str,
+) -> PacketShadedBothWays {
+    use lumis::integrator::{CameraSample, PacketSums};
+    use lumis::math::Rgb;
+    let packet = |traced: bool| -> Vec<CameraSample> {
+        let mut samples: Vec<CameraSample> = indices
+            .clone()
+            .map(|s| CameraSample::new(scene, pixel, s))
+            .collect();
+        if traced {
+            CameraSample::trace_together(scene, &mut samples);
+        }
+        samples
+    };
+    let traced = indices.len() == lumis::geometry::PACKET_SIZE;
+    let (mut alone, mut together) = (packet(true), packet(traced));
+    let stride = integrator.pixel_sums(scene);
+    let mut sums_alone = vec![0.0; stride];
+    let expected: Vec<Rgb> = alone
+        .iter_mut()
+        .map(|s| integrator.shade(scene, s, &mut sums_alone))
+        .collect();
+    let mut sums_together = vec![0.0; stride];
+    let mut radiance = vec![Rgb::ZERO; together.len()];
+    let mut sums = PacketSums::one_pixel(&mut sums_together, together.len());
+    integrator.shade_together(scene, &mut together, &mut sums, &mut radiance);
+    let bits =
+        |v: &[Rgb]| -> Vec<[u32; 3]> { v.iter().map(|c| c.to_array().map(f32::to_bits)).collect() };
+    assert_eq!(bits(&radiance), bits(&expected), "{name}, pixel {pixel}");
+    let sum_bits = |v: &[f64]| -> Vec<u64> { v.iter().map(|x| x.to_bits()).collect() };
+    assert_eq!(
+        sum_bits(&sums_together),
+        sum_bits(&sums_alone),
+        "{name}, pixel {pixel}: sums"
+    );
+    PacketShadedBothWays {
+        alone,
+        together,
+        expected,
+    }
+}
