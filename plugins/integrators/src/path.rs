@@ -585,6 +585,30 @@ impl PathState {
 }
 
 impl Path {
+    /// What a camera ray that meets no surface (past the emitters it hides) brings back: the
+    /// environment, or black where emitters are hidden.
+    fn escaped(&self, scene: &Scene, ray: &Ray) -> Rgb {
+        if self.hide_emitters {
+            Rgb::ZERO
+        } else {
+            scene.environment_radiance(ray.direction)
+        }
+    }
+
+    /// A path whose camera ray `ray` first meets `hit`: the emission seen there (none where
+    /// emitters are hidden), throughput one.
+    fn started(&self, scene: &Scene, hit: &Intersection, ray: &Ray) -> PathState {
+        PathState {
+            radiance: if self.hide_emitters {
+                Rgb::ZERO
+            } else {
+                emitted(scene, hit, ray.direction)
+            },
+            throughput: Rgb::ONE,
+            eta: 1.0,
+        }
+    }
+
     /// The camera ray's first surface, past the emitters it hides ([`HIDE_EMITTERS`]), and
     /// whether any was hidden.
     fn first_surface(
@@ -1288,21 +1312,9 @@ impl Integrator for Path {
         let hit = sample.hit(scene, &mut traced_now).copied();
         let (mut ray, hit, hidden) = self.first_surface(scene, sample.ray, hit);
         let Some(mut hit) = hit else {
-            return if self.hide_emitters {
-                Rgb::ZERO
-            } else {
-                scene.environment_radiance(ray.direction)
-            };
+            return self.escaped(scene, &ray);
         };
-        let mut path = PathState {
-            radiance: if self.hide_emitters {
-                Rgb::ZERO
-            } else {
-                emitted(scene, &hit, ray.direction)
-            },
-            throughput: Rgb::ONE,
-            eta: 1.0,
-        };
+        let mut path = self.started(scene, &hit, &ray);
         // Only with a cache: without, nothing is written (a `None` is its tag alone).
         let mut recording = self.cache.as_ref().map(|_| Recording::default());
         PhaseBuffers::with_thread_local(|buffers| {
@@ -1414,24 +1426,11 @@ impl Integrator for Path {
             let hit = sample.hit(scene, &mut traced_now).copied();
             let (ray, hit, hidden) = self.first_surface(scene, sample.ray, hit);
             let Some(hit) = hit else {
-                *radiance = if self.hide_emitters {
-                    Rgb::ZERO
-                } else {
-                    scene.environment_radiance(ray.direction)
-                };
+                *radiance = self.escaped(scene, &ray);
                 continue;
             };
-            let state = PathState {
-                radiance: if self.hide_emitters {
-                    Rgb::ZERO
-                } else {
-                    emitted(scene, &hit, ray.direction)
-                },
-                throughput: Rgb::ONE,
-                eta: 1.0,
-            };
             wave.paths[k] = Some(WavePath {
-                state,
+                state: self.started(scene, &hit, &ray),
                 hit,
                 ray,
                 primary: !hidden,
