@@ -1115,11 +1115,7 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
         let film = ["film.width=32", "film.height=24"];
         let loaded = common::load(&path, &film).unwrap_or_else(|e| panic!("{file}: {e}"));
         let scene = &loaded.scene;
-        // Every 7th pixel, over the whole film.
-        let pixels: Vec<glam::UVec2> = (0..scene.width * scene.height)
-            .step_by(7)
-            .map(|i| glam::UVec2::new(i % scene.width, i / scene.width))
-            .collect();
+        let pixels = common::every_nth_pixel(scene, 7);
         for integrator in integrators() {
             let cases = [
                 (1, false),
@@ -1141,15 +1137,8 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
                         aov_list,
                     ])
                     .collect();
-                let description = lumis::scene::load::parse_description(&path, &text, &overrides)
-                    .unwrap_or_else(|e| panic!("{file}: {e}"));
-                let mut built = lumis::scene::load::build_integrator(
-                    &description.integrator,
-                    path.parent().unwrap(),
-                )
-                .unwrap_or_else(|e| panic!("{file} with {integrator}: {e}"));
-                built.preprocess(scene);
                 let name = format!("{file}, {integrator}, N = {n}, AOVs {aovs}");
+                let built = common::preprocessed_integrator(&path, &text, &overrides, scene, &name);
                 for &pixel in &pixels {
                     for indices in [0..16, 16..21] {
                         let shaded =

@@ -1146,11 +1146,7 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
         let film = ["film.width=16", "film.height=12"];
         let loaded = common::load(&path, &film).unwrap_or_else(|e| panic!("{file}: {e}"));
         let scene = &loaded.scene;
-        // Every 5th pixel, over the whole film.
-        let pixels: Vec<glam::UVec2> = (0..scene.width * scene.height)
-            .step_by(5)
-            .map(|i| glam::UVec2::new(i % scene.width, i / scene.width))
-            .collect();
+        let pixels = common::every_nth_pixel(scene, 5);
         for configuration in configurations {
             let overrides: Vec<String> = film
                 .iter()
@@ -1158,15 +1154,8 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
                 .chain(["integrator.type=\"path\"".to_string()])
                 .chain(configuration.iter().map(|o| format!("integrator.{o}")))
                 .collect();
-            let description = lumis::scene::load::parse_description(&path, &text, &overrides)
-                .unwrap_or_else(|e| panic!("{file}: {e}"));
-            let mut built = lumis::scene::load::build_integrator(
-                &description.integrator,
-                path.parent().unwrap(),
-            )
-            .unwrap_or_else(|e| panic!("{file} with {configuration:?}: {e}"));
-            built.preprocess(scene);
             let name = format!("{file}, {configuration:?}");
+            let built = common::preprocessed_integrator(&path, &text, &overrides, scene, &name);
             for &pixel in &pixels {
                 for indices in [0..16, 16..21] {
                     let shaded =

@@ -244,3 +244,29 @@ pub fn shade_packet_both_ways(
         expected,
     }
 }
+
+/// Every `n`th pixel of `scene`'s film, in row order over the whole film.
+pub fn every_nth_pixel(scene: &lumis::scene::Scene, n: usize) -> Vec<glam::UVec2> {
+    (0..scene.width * scene.height)
+        .step_by(n)
+        .map(|i| glam::UVec2::new(i % scene.width, i / scene.width))
+        .collect()
+}
+
+/// The integrator that `path` (whose text is `text`) describes with `overrides`, built and
+/// preprocessed for `scene` (that file loaded); `name` names the case in the messages.
+pub fn preprocessed_integrator(
+    path: &Path,
+    text: &str,
+    overrides: &[String],
+    scene: &lumis::scene::Scene,
+    name: &str,
+) -> Box<dyn lumis::integrator::Integrator> {
+    let description = lumis::scene::load::parse_description(path, text, overrides)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let parent = path.parent().expect("a scene file is in a directory");
+    let mut built = lumis::scene::load::build_integrator(&description.integrator, parent)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    built.preprocess(scene);
+    built
+}
