@@ -279,6 +279,12 @@ pub(super) fn eval_pdf_in_lanes<B: BsdfLanes + ?Sized>(
         ctx.len() == 1 || ctx.len() == out.len(),
         "one context, or one per direction"
     );
+    // One direction would fill a whole group of lanes (a path's deep vertices, scattered over
+    // the scene's BSDFs, batch one point at a time): the one-lane formula, the same bits.
+    if let ([ctx], [wo], [wi], [out]) = (ctx, wo, wi, &mut *out) {
+        *out = eval_pdf_one(bsdf, ctx, *wo, *wi);
+        return;
+    }
     struct EvalPdf<'a, B: ?Sized> {
         bsdf: &'a B,
         ctx: &'a [BsdfContext],
@@ -344,6 +350,11 @@ pub(super) fn sample_in_lanes<B: BsdfLanes + ?Sized>(
         ctx.len() == 1 || ctx.len() == out.len(),
         "one context, or one per sample"
     );
+    // One sample: the one-lane formula, as `eval_pdf_in_lanes` for one direction.
+    if let ([ctx], [wo], [(u_lobe, u)], [out]) = (ctx, wo, u, &mut *out) {
+        *out = sample_one(bsdf, ctx, *wo, *u_lobe, *u);
+        return;
+    }
     struct Sample<'a, B: ?Sized> {
         bsdf: &'a B,
         ctx: &'a [BsdfContext],

@@ -76,19 +76,10 @@ impl BatchScratch {
 
     /// The BSDF samples of the entries in `bsdf_numbers`, with `contexts` and `wo`, into
     /// `bsdf_samples`: one batch call per run of consecutive entries whose shading points
-    /// (`owner`'s) share a BSDF, the scalar call for a run of one.
+    /// (`owner`'s) share a BSDF.
     pub(crate) fn sample_bsdfs<'a>(&mut self, bsdf_of: impl Fn(usize) -> &'a dyn Bsdf) {
         self.bsdf_samples.resize(self.bsdf_numbers.len(), None);
         for_runs(&self.owners, &bsdf_of, |bsdf, run| {
-            // A lone entry (a run of one: points scattered over several BSDFs, as a path's
-            // deep vertices are) would fill a whole group of lanes.
-            if run.len() == 1 {
-                let k = run.start;
-                let (u_lobe, u) = self.bsdf_numbers[k];
-                let ctx = &contexts_of(&self.contexts, run)[0];
-                self.bsdf_samples[k] = bsdf.sample(ctx, self.wo[k], u_lobe, u);
-                return;
-            }
             bsdf.sample_batch(
                 contexts_of(&self.contexts, run.clone()),
                 &self.wo[run.clone()],
@@ -101,8 +92,7 @@ impl BatchScratch {
     /// The light samples of the entries in `light_numbers` from `references`, into
     /// `light_samples`, and the BSDF toward each (`directions` in its shading point's frame,
     /// `frame_of(owner)`), into `values`: one batch call for the light, one per run of
-    /// consecutive entries whose shading points share a BSDF for the BSDF (the scalar call for
-    /// a run of one).
+    /// consecutive entries whose shading points share a BSDF for the BSDF.
     pub(crate) fn sample_light<'a>(
         &mut self,
         emitter: &dyn Emitter,
@@ -125,12 +115,6 @@ impl BatchScratch {
         );
         self.values.resize(n, (Rgb::ZERO, 0.0));
         for_runs(&self.owners, &|owner| point_of(owner).bsdf, |bsdf, run| {
-            if run.len() == 1 {
-                let k = run.start;
-                let ctx = &contexts_of(&self.contexts, run)[0];
-                self.values[k] = bsdf.eval_pdf(ctx, self.wo[k], self.directions[k]);
-                return;
-            }
             bsdf.eval_pdf_batch(
                 contexts_of(&self.contexts, run.clone()),
                 &self.wo[run.clone()],
