@@ -811,7 +811,8 @@ impl Path {
         match self.lights {
             Lights::All => {
                 for light in 0..lights {
-                    let each = |_| Some(None);
+                    // Times one: the same bits as `shade`'s estimate added as is.
+                    let each = |_| Some(1.0);
                     self.light_together(scene, light, depth, &mut members, wave, buffers, each);
                 }
             }
@@ -822,10 +823,7 @@ impl Path {
                 for (choice, sample) in choices.iter_mut().zip(members.iter_mut().flatten()) {
                     *choice = choose_light(&self.light_cdf, sample.sampler.next_1d(), lights);
                 }
-                let mut chosen = [0; PACKET_SIZE];
-                for (chosen, &(light, _)) in chosen.iter_mut().zip(&choices) {
-                    *chosen = light;
-                }
+                let mut chosen = choices.map(|(light, _)| light);
                 chosen[..count].sort_unstable();
                 let mut previous = None;
                 for &light in &chosen[..count] {
@@ -835,7 +833,7 @@ impl Path {
                     previous = Some(light);
                     let those = |i: usize| {
                         let (chosen, inverse_probability) = choices[i];
-                        (chosen == light).then_some(Some(inverse_probability))
+                        (chosen == light).then_some(inverse_probability)
                     };
                     self.light_together(scene, light, depth, &mut members, wave, buffers, those);
                 }
@@ -886,7 +884,7 @@ impl Path {
 
     /// Light `light`'s estimates at vertex `depth` of the wave's members that `weight_of(i)`
     /// takes (`Some`), drawn together for a non-delta light, each added to its path times the
-    /// weight it gives (`Some(1 / probability)` for a light chosen at random; `None`: as is).
+    /// weight it gives (1 / probability for a light chosen at random, else 1).
     #[allow(clippy::too_many_arguments)]
     fn light_together(
         &self,
@@ -896,7 +894,7 @@ impl Path {
         members: &mut Members<'_>,
         wave: &mut Wave<'_>,
         buffers: &mut [PhaseBuffers; PACKET_SIZE],
-        weight_of: impl Fn(usize) -> Option<Option<f32>>,
+        weight_of: impl Fn(usize) -> Option<f32>,
     ) {
         let Wave {
             paths,
@@ -908,9 +906,9 @@ impl Path {
             ..
         } = wave;
         let count = *count;
-        let add = |path: &mut Option<WavePath>, value: Rgb, weight: Option<f32>| {
+        let add = |path: &mut Option<WavePath>, value: Rgb, weight: f32| {
             if let Some(path) = path {
-                path.state.add(weight.map_or(value, |w| value * w));
+                path.state.add(value * weight);
             }
         };
         if scene.emitters[light].is_delta() {
