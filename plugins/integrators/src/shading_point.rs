@@ -36,8 +36,8 @@ impl<'a> ShadingPoint<'a> {
     /// is kept: built apart, it was copied there, and the copy read it back in 64-byte pieces
     /// just after its narrower stores, waiting for them to reach the cache. `hit` is borrowed
     /// for the same reason: taken by value, its 60 bytes were first copied to the stack with
-    /// overlapping stores and its normal read back across two of them, a wait that held about 1 %
-    /// of `alpha`'s time on Cornell (its share of a profile).
+    /// overlapping stores and its normal read back across two of them, a wait that stood under
+    /// the hottest instruction of `MisIntegrator::shade_together` in a profile.
     #[inline(always)]
     pub fn new(scene: &'a Scene, hit: &Intersection, wo_world: Vec3) -> Self {
         let flip = hit.geometric_normal.dot(wo_world) < 0.0;
@@ -119,8 +119,8 @@ impl<'a> ShadingPoint<'a> {
         } else {
             (height > 0.0, height)
         };
-        // Squared (both sides are non-negative): a square root's latency held up every light
-        // sample that passed the side test.
+        // Squared (both sides are non-negative): no square root's latency on the light records'
+        // loop, where a profile found it under the hottest instruction.
         facing
             && !sample.position.is_some_and(|p| {
                 let distance_squared = (p - self.hit.position).length_squared();
