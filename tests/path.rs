@@ -1111,16 +1111,16 @@ fn the_mixture_chooses_lights_by_weight_with_the_same_mean() {
     assert!(detected <= 0.02, "detects only {:.2} %", 100.0 * detected);
 }
 
-/// A packet of camera samples shaded together (`Integrator::shade_together`, which `path`
-/// runs as a wave: each vertex depth's lights drawn together for the packet's live paths)
+/// A wave of camera samples shaded together (`Integrator::shade_together`: each vertex depth's
+/// lights drawn together for the wave's live paths)
 /// gives what shading them one by one gives, bit for bit: each sample's colour and its pixel's
 /// sums. On the path scenes and on scenes of area, sphere, delta and environment lights and
 /// several materials (glass, mirrors, glossy), with every light or one chosen per vertex, hidden
 /// emitters, optimal MIS, adaptive first allocations (pilots included), N that fills the lanes
-/// (point by point), short paths and early roulette; packets of 16 traced samples and of 5
-/// untraced ones.
+/// (point by point), short paths and early roulette; waves of 16 traced samples and of 5
+/// untraced ones, and at every 13th pixel a whole wave (`WAVE_SIZE`, traced in packets).
 #[test]
-fn a_packet_shaded_together_gives_what_one_by_one_gives() {
+fn a_wave_shaded_together_gives_what_one_by_one_gives() {
     let configurations: &[&[&str]] = &[
         &[],
         &["lights=\"one\"", "max_depth=7"],
@@ -1156,8 +1156,10 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
                 .collect();
             let name = format!("{file}, {configuration:?}");
             let built = common::preprocessed_integrator(&path, &text, &overrides, scene, &name);
-            for &pixel in &pixels {
-                for indices in [0..16, 16..21] {
+            for (j, &pixel) in pixels.iter().enumerate() {
+                let whole_wave = 0..lumis::integrator::WAVE_SIZE as u32;
+                let waves = [0..16, 16..21, whole_wave];
+                for indices in waves.into_iter().take(if j % 13 == 0 { 3 } else { 2 }) {
                     let shaded =
                         common::shade_packet_both_ways(scene, &*built, pixel, indices, &name);
                     let (mut alone, mut together) = (shaded.alone, shaded.together);
@@ -1173,6 +1175,6 @@ fn a_packet_shaded_together_gives_what_one_by_one_gives() {
             }
         }
     }
-    assert!(compared > 1_000, "{compared} packets");
+    assert!(compared > 1_000, "{compared} waves");
     assert!(lit > 10_000, "{lit} lit samples");
 }

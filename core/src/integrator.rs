@@ -164,6 +164,11 @@ impl CameraSample {
     }
 }
 
+/// The most camera samples the render loop gives [`Integrator::shade_together`] at once (its
+/// [`Integrator::wave_size`] is clamped to it): a wave of a tile's consecutive samples, traced in
+/// packets of [`PACKET_SIZE`].
+pub const WAVE_SIZE: usize = 128;
+
 /// A light-transport algorithm.
 pub trait Integrator: Send + Sync {
     /// Extra output layers, if this configuration asks for any (they may depend on the scene,
@@ -218,14 +223,25 @@ pub trait Integrator: Send + Sync {
         }
     }
 
+    /// How many camera samples the render loop gives [`shade_together`](Self::shade_together)
+    /// at once, at most [`WAVE_SIZE`]: one packet ([`PACKET_SIZE`]) by default. An integrator
+    /// whose work shared across samples grows with their number asks for more: `path`'s deep
+    /// vertices fill the BSDF's lanes only across many paths. A direct integrator does not:
+    /// each of its lights revisits every sample's point, which a packet keeps in the L1 cache
+    /// (docs/performance.md, "Waves of camera samples").
+    fn wave_size(&self) -> usize {
+        PACKET_SIZE
+    }
+
     /// Shades one camera sample: returns its radiance estimate and *adds* its statistics to
     /// `sums`, the pixel's `pixel_sums` sums so far (all zero before its first sample). It must
     /// only add: core may shade a pixel's samples in parts and add the parts' sums.
     fn shade(&self, scene: &Scene, sample: &mut CameraSample, sums: &mut [f64]) -> Rgb;
 
-    /// [`shade`](Self::shade) for a packet of camera samples at once (core's packets span
-    /// consecutive pixels of a tile, each pixel's samples in index order, and are traced
-    /// together, [`CameraSample::trace_together`]): writes each one's estimate to `radiance` (as
+    /// [`shade`](Self::shade) for a wave of camera samples at once, at most
+    /// [`wave_size`](Self::wave_size) (core's waves span consecutive pixels of a tile, each
+    /// pixel's samples in index order, and are traced in packets,
+    /// [`CameraSample::trace_together`]): writes each one's estimate to `radiance` (as
     /// long as `samples`) and adds sample k's statistics to its own pixel's sums,
     /// `sums.of(k)`, in the order of the samples. The default shades them one by one; an
     /// integrator whose work batches across samples overrides it, and must give what `shade`
@@ -262,7 +278,7 @@ pub fn shade_one_by_one<I: Integrator + ?Sized>(
     }
 }
 
-/// The sums a packet of camera samples adds its statistics to: the sums of the pixels its
+/// The sums a wave of camera samples adds its statistics to: the sums of the pixels its
 /// samples belong to, `stride` ([`Integrator::pixel_sums`]) per pixel, and each sample's pixel.
 pub struct PacketSums<'a> {
     sums: &'a mut [f64],
@@ -272,7 +288,7 @@ pub struct PacketSums<'a> {
 }
 
 impl<'a> PacketSums<'a> {
-    /// The sums of a packet whose sample k belongs to pixel `pixels[k]` of `sums` (`stride`
+    /// The sums of a wave whose sample k belongs to pixel `pixels[k]` of `sums` (`stride`
     /// sums a pixel, e.g. a tile's).
     pub fn new(sums: &'a mut [f64], stride: usize, pixels: &'a [u32]) -> Self {
         assert!(
@@ -288,10 +304,10 @@ impl<'a> PacketSums<'a> {
         }
     }
 
-    /// The sums of a packet of `samples` camera samples of one pixel, whose sums are `sums`.
+    /// The sums of a wave of `samples` camera samples of one pixel, whose sums are `sums`.
     pub fn one_pixel(sums: &'a mut [f64], samples: usize) -> Self {
-        const FIRST: [u32; PACKET_SIZE] = [0; PACKET_SIZE];
-        assert!(samples <= PACKET_SIZE, "at most a packet of samples");
+        const FIRST: [u32; WAVE_SIZE] = [0; WAVE_SIZE];
+        assert!(samples <= WAVE_SIZE, "at most a wave of samples");
         let stride = sums.len();
         PacketSums::new(sums, stride, &FIRST[..samples])
     }
@@ -303,7 +319,7 @@ impl<'a> PacketSums<'a> {
         &mut self.sums[first..first + self.stride]
     }
 
-    /// The number of samples in the packet.
+    /// The number of samples in the wave.
     pub fn samples(&self) -> usize {
         self.pixels.len()
     }

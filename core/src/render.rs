@@ -16,8 +16,8 @@
 use crate::film::Film;
 pub use crate::film_sums::FilmSums;
 use crate::film_sums::{TileSumsMut, for_each_pixel_in_rows, pixel_color, tiles};
-use crate::geometry::{PACKET_SIZE, take_ray_count};
-use crate::integrator::{CameraSample, Integrator, PacketSums};
+use crate::geometry::take_ray_count;
+use crate::integrator::{CameraSample, Integrator, PacketSums, WAVE_SIZE};
 use crate::math::Rgb;
 use crate::passes::{Budget, PlannedPass, give, sample_weight};
 use crate::scene::Scene;
@@ -107,8 +107,9 @@ pub fn render(
 }
 
 /// As [`render`], but stops soon after `cancel` becomes true: it is checked before every
-/// packet of camera samples (the [`PACKET_SIZE`] samples of consecutive pixels of a tile traced
-/// and shaded together, [`render_tile`]), so a render stops within one packet per thread. A pixel is *finished*
+/// wave of camera samples (the [`Integrator::wave_size`] samples of consecutive pixels of a
+/// tile traced and shaded together, [`render_tile`]), so a render stops within one wave per
+/// thread. A pixel is *finished*
 /// when all its `spp` camera samples are done; the film holds every finished pixel, the pixels
 /// that were not finished stay black (colour and AOVs zero), and the statistics count both.
 ///
@@ -280,11 +281,12 @@ struct TileDone {
 }
 
 /// Renders a tile's pass: the pixels in row order, each its camera samples from its count up to
-/// its end, made, traced and shaded in packets of [`PACKET_SIZE`] that span consecutive pixels
-/// (a pixel's samples in index order, then the next pixel's: neighbouring pixels' camera rays
-/// are coherent too, and a pixel of few samples still fills a packet). Each sample's colour and
+/// its end, made and shaded in waves of the integrator's [`Integrator::wave_size`] (traced in
+/// packets of [`PACKET_SIZE`](crate::geometry::PACKET_SIZE)) that span consecutive pixels (a
+/// pixel's samples in index order, then the next pixel's: neighbouring pixels' camera rays are
+/// coherent too, and a pixel of few samples still fills a packet). Each sample's colour and
 /// statistics go to its own pixel's sums, in index order, as they would one pixel at a time.
-/// `cancel` is checked before each packet; the pixel the packets so far have cut short gets its
+/// `cancel` is checked before each wave; the pixel the waves so far have cut short gets its
 /// sums from before the pass back, so that every pixel kept has all the samples of each pass it
 /// has.
 fn render_tile(
@@ -298,12 +300,13 @@ fn render_tile(
     let stride = part.sums.len() / tile.pixels();
     let keep_halves = !part.halves.is_empty();
     let mut done = TileDone::default();
-    // The packet: its samples, each one's pixel (its slot in the tile) and estimate, and its
+    // The wave: its samples, each one's pixel (its slot in the tile) and estimate, and its
     // runs of samples of one pixel.
-    let mut batch = Vec::with_capacity(PACKET_SIZE);
-    let mut slots = [0u32; PACKET_SIZE];
-    let mut radiance = [Rgb::ZERO; PACKET_SIZE];
-    let mut runs = [Run::default(); PACKET_SIZE];
+    let wave = integrator.wave_size().clamp(1, WAVE_SIZE);
+    let mut batch = Vec::with_capacity(WAVE_SIZE);
+    let mut slots = [0u32; WAVE_SIZE];
+    let mut radiance = [Rgb::ZERO; WAVE_SIZE];
+    let mut runs = [Run::default(); WAVE_SIZE];
     // The pixel whose samples are being made, and its sums from before the pass.
     let mut open = OpenPixel::default();
     let mut before = vec![0.0; stride];
@@ -324,7 +327,7 @@ fn render_tile(
         }
         batch.clear();
         let mut run_count = 0;
-        while batch.len() < PACKET_SIZE {
+        while batch.len() < wave {
             if open.next == open.end {
                 // The next pixel with samples in this pass; those without have theirs.
                 while next_slot < tile.pixels()
@@ -346,7 +349,7 @@ fn render_tile(
                 }
             }
             let first = batch.len();
-            let last = (open.next + (PACKET_SIZE - first) as u32).min(open.end);
+            let last = (open.next + (wave - first) as u32).min(open.end);
             CameraSample::extend_pixel(scene, open.pixel, open.next..last, &mut batch);
             slots[first..batch.len()].fill(open.slot);
             runs[run_count] = Run {
@@ -419,12 +422,12 @@ impl OpenPixel {
     }
 }
 
-/// The samples of one pixel in a packet.
+/// The samples of one pixel in a wave.
 #[derive(Clone, Copy, Default)]
 struct Run {
     /// The pixel's index in the tile.
     slot: u32,
-    /// Where its samples are in the packet: `first..end`.
+    /// Where its samples are in the wave: `first..end`.
     first: usize,
     end: usize,
     /// Their weight ([`sample_weight`]).

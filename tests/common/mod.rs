@@ -194,9 +194,9 @@ pub struct PacketShadedBothWays {
 }
 
 /// Shades camera samples `indices` of `pixel` with `integrator` one by one (`shade`, their
-/// primary rays traced together first) and as one packet (`shade_together`; the rays traced
-/// beforehand only for a packet of 16: a shorter packet's are left for the integrator to trace,
-/// which it must do as `trace_together` would), and asserts that both ways give the same
+/// primary rays traced together first) and as one wave (`shade_together`; the rays traced
+/// beforehand only for whole packets of 16: a shorter wave's are left for the integrator to
+/// trace, which it must do as `trace_together` would), and asserts that both ways give the same
 /// colours and pixel sums, bit for bit (`name` names the case in the messages).
 pub fn shade_packet_both_ways(
     scene: &lumis::scene::Scene,
@@ -217,7 +217,7 @@ pub fn shade_packet_both_ways(
         }
         samples
     };
-    let traced = indices.len() == lumis::geometry::PACKET_SIZE;
+    let traced = indices.len().is_multiple_of(lumis::geometry::PACKET_SIZE);
     let (mut alone, mut together) = (packet(true), packet(traced));
     let stride = integrator.pixel_sums(scene);
     let mut sums_alone = vec![0.0; stride];

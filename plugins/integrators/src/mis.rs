@@ -184,7 +184,7 @@ impl<M: Method> Integrator for MisIntegrator<M> {
                 }
             };
         }
-        PhaseBuffers::with_thread_local_packet(|buffers| {
+        PhaseBuffers::with_thread_local_wave(|buffers| {
             for (light, emitter) in scene.emitters.iter().enumerate() {
                 if emitter.is_delta() {
                     let shaded = samples.iter_mut().zip(&points).zip(radiance.iter_mut());

@@ -89,8 +89,10 @@ use crate::{
     alpha, balance, cost_alpha, cutoff, exact_alpha, max, optimal_mis, pooled_alpha, power,
     variance_aware,
 };
+use arrayvec::ArrayVec;
 use lumis_core::emitter::ReferencePoint;
-use lumis_core::geometry::{Intersection, PACKET_SIZE, Ray};
+use lumis_core::geometry::{Intersection, Ray};
+use lumis_core::integrator::WAVE_SIZE;
 use lumis_core::integrator::{CameraSample, Integrator, PacketSums, shade_one_by_one};
 use lumis_core::math::{Rgb, luminance};
 use lumis_core::output::Aov;
@@ -732,7 +734,7 @@ impl Path {
     }
 }
 
-/// One camera sample's path in a packet's wave ([`Integrator::shade_together`]): what it
+/// One camera sample's path in a wave ([`Integrator::shade_together`]): what it
 /// gathered, the surface it reached and the ray that reached it.
 #[derive(Clone, Copy)]
 struct WavePath {
@@ -743,38 +745,40 @@ struct WavePath {
     primary: bool,
 }
 
-/// A packet's paths advanced as a wave, made once per packet and written in place at each
+/// A wave's paths, made once per wave and written in place at each
 /// vertex depth (made anew at each depth with `array::from_fn`, its arrays were copied whole:
 /// 8 % more instructions on cornell-bounce). Path k is camera
 /// sample k's; at the current depth, member i is the i-th live path, sample `owners[i]`, at
 /// shading point `points[i]`, its continuation in `slots[i]`.
 struct Wave<'a> {
-    paths: [Option<WavePath>; PACKET_SIZE],
+    /// Path k, pushed in order as the wave starts (an array made whole was zeroed whole).
+    paths: ArrayVec<Option<WavePath>, WAVE_SIZE>,
     /// Whether path k reached the current depth.
-    live: [bool; PACKET_SIZE],
+    live: [bool; WAVE_SIZE],
     count: usize,
-    owners: [usize; PACKET_SIZE],
-    points: [Option<ShadingPoint<'a>>; PACKET_SIZE],
-    primary: [bool; PACKET_SIZE],
-    slots: [ContinuationSlot; PACKET_SIZE],
+    owners: [usize; WAVE_SIZE],
+    /// The members' points, pushed anew at each depth (an array made whole was zeroed whole).
+    points: ArrayVec<Option<ShadingPoint<'a>>, WAVE_SIZE>,
+    primary: [bool; WAVE_SIZE],
+    slots: [ContinuationSlot; WAVE_SIZE],
 }
 
 impl Default for Wave<'_> {
     fn default() -> Self {
         Wave {
-            paths: [None; PACKET_SIZE],
-            live: [false; PACKET_SIZE],
+            paths: ArrayVec::new(),
+            live: [false; WAVE_SIZE],
             count: 0,
-            owners: [0; PACKET_SIZE],
-            points: Default::default(),
-            primary: [false; PACKET_SIZE],
-            slots: [ContinuationSlot::NotWanted; PACKET_SIZE],
+            owners: [0; WAVE_SIZE],
+            points: ArrayVec::new(),
+            primary: [false; WAVE_SIZE],
+            slots: [ContinuationSlot::NotWanted; WAVE_SIZE],
         }
     }
 }
 
 /// The wave's members' camera samples, member i's at index i.
-type Members<'s> = [Option<&'s mut CameraSample>; PACKET_SIZE];
+type Members<'s> = [Option<&'s mut CameraSample>; WAVE_SIZE];
 
 impl Path {
     /// Vertex `depth` of the wave's live paths, as `shade` runs it for each: the lights'
@@ -786,17 +790,22 @@ impl Path {
         depth: u32,
         samples: &mut [CameraSample],
         wave: &mut Wave<'a>,
-        buffers: &mut [PhaseBuffers; PACKET_SIZE],
+        buffers: &mut [PhaseBuffers; WAVE_SIZE],
     ) {
         // The next vertex is worth reaching if it will sample lights.
         let goes_on = depth + 1 < self.max_depth && depth + 1 < MAX_VERTICES;
-        let mut members: Members = [const { None }; PACKET_SIZE];
+        let mut members: Members = [const { None }; WAVE_SIZE];
         let mut count = 0;
+        wave.points.clear();
         let live = samples.iter_mut().zip(&wave.live).enumerate();
         for (k, sample) in live.filter_map(|(k, (sample, &live))| live.then_some((k, sample))) {
             let Some(path) = &wave.paths[k] else { continue };
             wave.owners[count] = k;
-            wave.points[count] = Some(ShadingPoint::new(scene, &path.hit, -path.ray.direction));
+            wave.points.push(Some(ShadingPoint::new(
+                scene,
+                &path.hit,
+                -path.ray.direction,
+            )));
             wave.primary[count] = depth == 1 && path.primary;
             wave.slots[count] = if goes_on {
                 ContinuationSlot::Wanted
@@ -819,7 +828,7 @@ impl Path {
             Lights::One if lights > 0 => {
                 // Each path's light, drawn first at the vertex as `shade` draws it; the paths
                 // that chose one light are estimated together.
-                let mut choices = [(0, 0.0); PACKET_SIZE];
+                let mut choices = [(0, 0.0); WAVE_SIZE];
                 for (choice, sample) in choices.iter_mut().zip(members.iter_mut().flatten()) {
                     *choice = choose_light(&self.light_cdf, sample.sampler.next_1d(), lights);
                 }
@@ -893,7 +902,7 @@ impl Path {
         depth: u32,
         members: &mut Members<'_>,
         wave: &mut Wave<'_>,
-        buffers: &mut [PhaseBuffers; PACKET_SIZE],
+        buffers: &mut [PhaseBuffers; WAVE_SIZE],
         weight_of: impl Fn(usize) -> Option<f32>,
     ) {
         let Wave {
@@ -928,9 +937,9 @@ impl Path {
             &self.deeper
         };
         // The members estimated, in order: sampling j is member `estimated[j]`.
-        let mut estimated = [0; PACKET_SIZE];
-        let mut samplings: [Option<LightSampling>; PACKET_SIZE] = [const { None }; PACKET_SIZE];
-        let mut samplings_count = 0;
+        let mut estimated = [0; WAVE_SIZE];
+        // Pushed in place: an array of the wave's size, made whole, was zeroed whole.
+        let mut samplings = ArrayVec::<Option<LightSampling>, WAVE_SIZE>::new();
         let taken = members.iter_mut().zip(points.iter()).zip(slots.iter_mut());
         let each = taken.zip(primary.iter()).take(count).enumerate();
         for ((i, (((sample, point), slot), &primary)), buffers) in each.zip(buffers.iter_mut()) {
@@ -945,13 +954,12 @@ impl Path {
                 .with_camera_sample(sample.index)
                 .at_vertex(depth, primary)
                 .with_continuation(slot);
-            estimated[samplings_count] = i;
-            samplings[samplings_count] = Some(sampling);
-            samplings_count += 1;
+            estimated[samplings.len()] = i;
+            samplings.push(Some(sampling));
         }
-        let n = samplings_count;
-        let mut estimates = [LightEstimate::default(); PACKET_SIZE];
-        method.estimate_together(&mut samplings[..n], &mut estimates[..n]);
+        let n = samplings.len();
+        let mut estimates = [LightEstimate::default(); WAVE_SIZE];
+        method.estimate_together(&mut samplings, &mut estimates[..n]);
         for (&i, estimate) in estimated.iter().zip(&estimates).take(n) {
             if let Some(weight) = weight_of(i) {
                 add(&mut paths[owners[i]], estimate.value, weight);
@@ -1389,14 +1397,22 @@ impl Integrator for Path {
         path.radiance
     }
 
-    /// The packet's paths advanced as a wave, vertex depth by vertex depth
+    /// Asks for waves of [`WAVE_SIZE`] camera samples: at deep vertices the live paths'
+    /// points are scattered over the scene's BSDFs, and only many paths fill a BSDF's lanes
+    /// (the path race's box 0.920 [0.875, 0.968] of the time in packets of 16,
+    /// docs/performance.md).
+    fn wave_size(&self) -> usize {
+        WAVE_SIZE
+    }
+
+    /// The wave's paths advanced together, vertex depth by vertex depth
     /// ([`wave_vertex`](Path::wave_vertex)): at each depth every light's estimates at all the
     /// live paths' shading points are drawn together ([`Method::estimate_together`], each path
     /// taking its continuation from its first BSDF sample there, as `shade` does), then each
     /// path goes on or ends. Each path draws from its own stream in the order `shade` draws, so
     /// each sample gets what `shade` gives, bit for bit. One by one, through `shade`: with AOVs
     /// (their sums), with a deeper mixture (its vertices, the cache's records, are drawn per
-    /// path), with an allocation that learns, at `max_depth` 0, and for a packet of one, which
+    /// path), with an allocation that learns, at `max_depth` 0, and for a wave of one, which
     /// has nothing to share.
     fn shade_together(
         &self,
@@ -1412,7 +1428,7 @@ impl Integrator for Path {
             || self.deeper.learning()
             || self.max_depth == 0
             || samples.len() == 1
-            || samples.len() > PACKET_SIZE
+            || samples.len() > WAVE_SIZE
         {
             return shade_one_by_one(self, scene, samples, sums, radiance);
         }
@@ -1425,17 +1441,18 @@ impl Integrator for Path {
             let (ray, hit, hidden) = self.first_surface(scene, sample.ray, hit);
             let Some(hit) = hit else {
                 *radiance = self.escaped(scene, &ray);
+                wave.paths.push(None);
                 continue;
             };
-            wave.paths[k] = Some(WavePath {
+            wave.paths.push(Some(WavePath {
                 state: self.started(scene, &hit, &ray),
                 hit,
                 ray,
                 primary: !hidden,
-            });
+            }));
             wave.live[k] = true;
         }
-        PhaseBuffers::with_thread_local_packet(|buffers| {
+        PhaseBuffers::with_thread_local_wave(|buffers| {
             // Mitsuba's vertex d − 1 samples lights when d < max_depth.
             for depth in 1..MAX_VERTICES.min(self.max_depth) {
                 if !wave.live.contains(&true) {

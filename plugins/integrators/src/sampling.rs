@@ -20,7 +20,7 @@ use crate::weighting::Weighting;
 use glam::UVec2;
 use lumis_core::bsdf::BsdfContext;
 use lumis_core::emitter::ReferencePoint;
-use lumis_core::geometry::PACKET_SIZE;
+use lumis_core::integrator::WAVE_SIZE;
 use lumis_core::math::Rgb;
 use lumis_core::math::lanes::widest_width;
 use lumis_core::sampler::Sampler;
@@ -36,9 +36,9 @@ pub struct PhaseBuffers {
 }
 
 thread_local! {
-    /// One set per camera sample of a packet; the first is also the one of single samples.
-    static PHASE_BUFFERS: std::cell::RefCell<[PhaseBuffers; PACKET_SIZE]> =
-        std::cell::RefCell::new(Default::default());
+    /// One set per camera sample of a wave; the first is also the one of single samples.
+    static PHASE_BUFFERS: std::cell::RefCell<[PhaseBuffers; WAVE_SIZE]> =
+        std::cell::RefCell::new(std::array::from_fn(|_| PhaseBuffers::default()));
 }
 
 impl PhaseBuffers {
@@ -49,9 +49,9 @@ impl PhaseBuffers {
         PHASE_BUFFERS.with_borrow_mut(|buffers| f(&mut buffers[0]))
     }
 
-    /// Runs `f` with this thread's buffers for the camera samples of one packet, one each (for
+    /// Runs `f` with this thread's buffers for the camera samples of one wave, one each (for
     /// [`LightSampling::phases_together`]). Not re-entrant.
-    pub fn with_thread_local_packet<R>(f: impl FnOnce(&mut [PhaseBuffers; PACKET_SIZE]) -> R) -> R {
+    pub fn with_thread_local_wave<R>(f: impl FnOnce(&mut [PhaseBuffers; WAVE_SIZE]) -> R) -> R {
         PHASE_BUFFERS.with_borrow_mut(f)
     }
 }
@@ -278,6 +278,9 @@ impl<'a> LightSampling<'a> {
     /// every sampling gets what `phase` would give it, bit for bit: a sampling whose
     /// continuation slot is wanted takes its first BSDF sample as the path's continuation, as
     /// `phase` does.
+    // Inlined: called for packets and for `path`'s waves, it was no longer inlined into either,
+    // and the packets' instructions rose 0.3 %.
+    #[inline(always)]
     pub fn phases_together<W: Weighting + ?Sized, O: Observer>(
         samplings: &mut [Option<LightSampling>],
         splits: &[SampleSplit],
