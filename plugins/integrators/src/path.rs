@@ -760,7 +760,9 @@ struct Wave<'a> {
     /// The members' points, pushed anew at each depth (an array made whole was zeroed whole).
     points: ArrayVec<Option<ShadingPoint<'a>>, WAVE_SIZE>,
     primary: [bool; WAVE_SIZE],
-    slots: [ContinuationSlot; WAVE_SIZE],
+    /// The members' continuations, pushed anew at each depth (an array made whole was built
+    /// apart and copied whole).
+    slots: ArrayVec<ContinuationSlot, WAVE_SIZE>,
 }
 
 impl Default for Wave<'_> {
@@ -772,7 +774,7 @@ impl Default for Wave<'_> {
             owners: [0; WAVE_SIZE],
             points: ArrayVec::new(),
             primary: [false; WAVE_SIZE],
-            slots: [ContinuationSlot::NotWanted; WAVE_SIZE],
+            slots: ArrayVec::new(),
         }
     }
 }
@@ -797,6 +799,7 @@ impl Path {
         let mut members: Members = [const { None }; WAVE_SIZE];
         let mut count = 0;
         wave.points.clear();
+        wave.slots.clear();
         let live = samples.iter_mut().zip(&wave.live).enumerate();
         for (k, sample) in live.filter_map(|(k, (sample, &live))| live.then_some((k, sample))) {
             let Some(path) = &wave.paths[k] else { continue };
@@ -807,11 +810,11 @@ impl Path {
                 -path.ray.direction,
             )));
             wave.primary[count] = depth == 1 && path.primary;
-            wave.slots[count] = if goes_on {
+            wave.slots.push(if goes_on {
                 ContinuationSlot::Wanted
             } else {
                 ContinuationSlot::NotWanted
-            };
+            });
             members[count] = Some(sample);
             count += 1;
         }
