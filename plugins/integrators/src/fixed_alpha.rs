@@ -60,8 +60,8 @@ impl Allocation for FixedAlpha {
         weighting: &W,
         estimates: &mut [LightEstimate],
     ) {
-        // A packet's arrays for a packet: a wave's capacity, filled by pushes, cost the race
-        // scenes' packets 0.6–0.8 % more instructions.
+        // Arrays of a packet's size for a packet: lists of a wave's capacity, filled by pushes,
+        // cost the race scenes 0.6–0.8 % more instructions.
         if samplings.len() <= PACKET_SIZE {
             self.estimate_in_chunks::<PACKET_SIZE, W>(samplings, weighting, estimates);
         } else {
