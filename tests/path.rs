@@ -1132,7 +1132,7 @@ fn a_wave_shaded_together_gives_what_one_by_one_gives() {
         &["allocation=\"variance_aware\"", "block=4", "samples=8"],
         &["allocation=\"pooled_alpha\"", "samples=8", "max_depth=4"],
     ];
-    let (mut compared, mut lit) = (0, 0);
+    let (mut compared, mut lit, mut whole_waves) = (0, 0, 0);
     for file in [
         "scenes/cornell-bounce.ron",
         "scenes/cornell-glass.ron",
@@ -1170,11 +1170,13 @@ fn a_wave_shaded_together_gives_what_one_by_one_gives() {
                         alone.iter_mut().map(|s| s.sampler.next_1d()).collect();
                     assert_eq!(next, next_alone, "{name}, pixel {pixel}: streams");
                     compared += 1;
+                    whole_waves += usize::from(expected.len() == lumis::integrator::WAVE_SIZE);
                     lit += expected.iter().filter(|c| c.max_element() > 0.0).count();
                 }
             }
         }
     }
     assert!(compared > 1_000, "{compared} waves");
+    assert!(whole_waves >= 100, "{whole_waves} whole waves");
     assert!(lit > 10_000, "{lit} lit samples");
 }

@@ -303,7 +303,7 @@ fn render_tile(
     // The wave: its samples, each one's pixel (its slot in the tile) and estimate, and its
     // runs of samples of one pixel.
     let wave = integrator.wave_size().clamp(1, WAVE_SIZE);
-    let mut batch = Vec::with_capacity(WAVE_SIZE);
+    let mut batch = Vec::with_capacity(wave);
     let mut slots = [0u32; WAVE_SIZE];
     let mut radiance = [Rgb::ZERO; WAVE_SIZE];
     let mut runs = [Run::default(); WAVE_SIZE];

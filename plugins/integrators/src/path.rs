@@ -745,23 +745,21 @@ struct WavePath {
     primary: bool,
 }
 
-/// A wave's paths, made once per wave and written in place at each
-/// vertex depth (made anew at each depth with `array::from_fn`, its arrays were copied whole:
-/// 8 % more instructions on cornell-bounce). Path k is camera
-/// sample k's; at the current depth, member i is the i-th live path, sample `owners[i]`, at
-/// shading point `points[i]`, its continuation in `slots[i]`.
+/// A wave's paths, made once per wave and written in place at each vertex depth (made anew at
+/// each depth with `array::from_fn`, its arrays were copied whole: 8 % more instructions on
+/// cornell-bounce). Path k is camera sample k's; at the current depth, member i is the i-th
+/// live path, sample `owners[i]`, at shading point `points[i]`, its continuation in
+/// `slots[i]`. The lists are pushed in place (arrays of the wave's size made whole were zeroed
+/// whole, or built apart and copied whole: 2.4 % and 1.7 % of cornell-bounce's instructions).
 struct Wave<'a> {
-    /// Path k, pushed in order as the wave starts (an array made whole was zeroed whole).
+    /// Path k, pushed in order as the wave starts.
     paths: ArrayVec<Option<WavePath>, WAVE_SIZE>,
     /// Whether path k reached the current depth.
     live: [bool; WAVE_SIZE],
-    count: usize,
-    owners: [usize; WAVE_SIZE],
-    /// The members' points, pushed anew at each depth (an array made whole was zeroed whole).
-    points: ArrayVec<Option<ShadingPoint<'a>>, WAVE_SIZE>,
-    primary: [bool; WAVE_SIZE],
-    /// The members' continuations, pushed anew at each depth (an array made whole was built
-    /// apart and copied whole).
+    /// The members at the current depth, pushed anew at each.
+    owners: ArrayVec<usize, WAVE_SIZE>,
+    points: ArrayVec<ShadingPoint<'a>, WAVE_SIZE>,
+    primary: ArrayVec<bool, WAVE_SIZE>,
     slots: ArrayVec<ContinuationSlot, WAVE_SIZE>,
 }
 
@@ -770,17 +768,16 @@ impl Default for Wave<'_> {
         Wave {
             paths: ArrayVec::new(),
             live: [false; WAVE_SIZE],
-            count: 0,
-            owners: [0; WAVE_SIZE],
+            owners: ArrayVec::new(),
             points: ArrayVec::new(),
-            primary: [false; WAVE_SIZE],
+            primary: ArrayVec::new(),
             slots: ArrayVec::new(),
         }
     }
 }
 
 /// The wave's members' camera samples, member i's at index i.
-type Members<'s> = [Option<&'s mut CameraSample>; WAVE_SIZE];
+type Members<'s> = ArrayVec<&'s mut CameraSample, WAVE_SIZE>;
 
 impl Path {
     /// Vertex `depth` of the wave's live paths, as `shade` runs it for each: the lights'
@@ -796,29 +793,26 @@ impl Path {
     ) {
         // The next vertex is worth reaching if it will sample lights.
         let goes_on = depth + 1 < self.max_depth && depth + 1 < MAX_VERTICES;
-        let mut members: Members = [const { None }; WAVE_SIZE];
-        let mut count = 0;
+        let mut members = Members::new();
+        wave.owners.clear();
         wave.points.clear();
+        wave.primary.clear();
         wave.slots.clear();
         let live = samples.iter_mut().zip(&wave.live).enumerate();
         for (k, sample) in live.filter_map(|(k, (sample, &live))| live.then_some((k, sample))) {
             let Some(path) = &wave.paths[k] else { continue };
-            wave.owners[count] = k;
-            wave.points.push(Some(ShadingPoint::new(
-                scene,
-                &path.hit,
-                -path.ray.direction,
-            )));
-            wave.primary[count] = depth == 1 && path.primary;
+            wave.owners.push(k);
+            wave.points
+                .push(ShadingPoint::new(scene, &path.hit, -path.ray.direction));
+            wave.primary.push(depth == 1 && path.primary);
             wave.slots.push(if goes_on {
                 ContinuationSlot::Wanted
             } else {
                 ContinuationSlot::NotWanted
             });
-            members[count] = Some(sample);
-            count += 1;
+            members.push(sample);
         }
-        wave.count = count;
+        let count = members.len();
         let lights = scene.emitters.len();
         match self.lights {
             Lights::All => {
@@ -832,7 +826,7 @@ impl Path {
                 // Each path's light, drawn first at the vertex as `shade` draws it; the paths
                 // that chose one light are estimated together.
                 let mut choices = [(0, 0.0); WAVE_SIZE];
-                for (choice, sample) in choices.iter_mut().zip(members.iter_mut().flatten()) {
+                for (choice, sample) in choices.iter_mut().zip(members.iter_mut()) {
                     *choice = choose_light(&self.light_cdf, sample.sampler.next_1d(), lights);
                 }
                 let mut chosen = choices.map(|(light, _)| light);
@@ -860,15 +854,10 @@ impl Path {
             slots,
             ..
         } = wave;
-        for (((&k, sample), sp), slot) in owners
-            .iter()
-            .zip(&mut members)
-            .zip(&*points)
-            .zip(&*slots)
-            .take(count)
-        {
+        let each = owners.iter().zip(&mut members).zip(&*points).zip(&*slots);
+        for (((&k, sample), sp), slot) in each {
             live[k] = false;
-            let (Some(sample), Some(sp), Some(path)) = (sample, sp, paths[k].as_mut()) else {
+            let Some(path) = paths[k].as_mut() else {
                 continue;
             };
             let continuation = match *slot {
@@ -910,23 +899,20 @@ impl Path {
     ) {
         let Wave {
             paths,
-            count,
             owners,
             points,
             primary,
             slots,
             ..
         } = wave;
-        let count = *count;
         let add = |path: &mut Option<WavePath>, value: Rgb, weight: f32| {
             if let Some(path) = path {
                 path.state.add(value * weight);
             }
         };
         if scene.emitters[light].is_delta() {
-            let each = members.iter_mut().zip(points.iter()).take(count);
-            for (i, (sample, point)) in each.enumerate() {
-                let (Some(weight), Some(sample), Some(sp)) = (weight_of(i), sample, point) else {
+            for (i, (sample, sp)) in members.iter_mut().zip(points.iter()).enumerate() {
+                let Some(weight) = weight_of(i) else {
                     continue;
                 };
                 let value = estimate_delta_light(scene, sp, light, &mut sample.sampler);
@@ -944,11 +930,8 @@ impl Path {
         // Pushed in place: an array of the wave's size, made whole, was zeroed whole.
         let mut samplings = ArrayVec::<Option<LightSampling>, WAVE_SIZE>::new();
         let taken = members.iter_mut().zip(points.iter()).zip(slots.iter_mut());
-        let each = taken.zip(primary.iter()).take(count).enumerate();
-        for ((i, (((sample, point), slot), &primary)), buffers) in each.zip(buffers.iter_mut()) {
-            let (Some(sample), Some(sp)) = (sample.as_deref_mut(), point.as_ref()) else {
-                continue;
-            };
+        let each = taken.zip(primary.iter()).enumerate();
+        for ((i, (((sample, sp), slot), &primary)), buffers) in each.zip(buffers.iter_mut()) {
             if weight_of(i).is_none() {
                 continue;
             }
@@ -1402,7 +1385,7 @@ impl Integrator for Path {
 
     /// Asks for waves of [`WAVE_SIZE`] camera samples: at deep vertices the live paths'
     /// points are scattered over the scene's BSDFs, and only many paths fill a BSDF's lanes
-    /// (the path race's box 0.920 [0.875, 0.968] of the time in packets of 16,
+    /// (the path race's box in 0.906 [0.870, 0.944] of the time it took in packets of 16,
     /// docs/performance.md).
     fn wave_size(&self) -> usize {
         WAVE_SIZE
