@@ -227,8 +227,9 @@ pub trait Integrator: Send + Sync {
     /// at once, at most [`WAVE_SIZE`]: one packet ([`PACKET_SIZE`]) by default. An integrator
     /// whose work shared across samples grows with their number asks for more: `path`'s deep
     /// vertices fill the BSDF's lanes only across many paths. A direct integrator does not:
-    /// each of its lights revisits every sample's point, which a packet keeps in the L1 cache
-    /// (docs/performance.md, "Waves of camera samples").
+    /// each of its lights revisits every sample's point, which stays in the L1 cache for a
+    /// packet and not for a wave of 128 (simulated misses 70 times as many on Veach,
+    /// docs/performance.md, "Waves of camera samples").
     fn wave_size(&self) -> usize {
         PACKET_SIZE
     }
