@@ -19,7 +19,7 @@ use lumis::integrators::second_order::SecondOrderMoments;
 use lumis::integrators::shading_point::ShadingPoint;
 use lumis::integrators::weighting::{Balance, PerSample, Weighting};
 use lumis::math::Rgb;
-use lumis::math::lanes::{MAX_WIDTH, limit_width};
+use lumis::math::lanes::{DEFAULT_WIDTH, limit_width};
 use lumis::sampler::Sampler;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -31,9 +31,14 @@ use std::time::Duration;
 const BATCH: usize = 4096;
 /// Samples drawn at one shading point in the batch benchmarks (N = 64, half per technique).
 const POINT_SAMPLES: usize = 32;
-/// The batch kernels at the widest lanes the processor has (eight with AVX2), and at four: the
-/// same results, so the ratio is what the wider lanes buy.
-const LANE_WIDTHS: [(&str, usize); 2] = [("", MAX_WIDTH), ("_four_lanes", 4)];
+/// The batch kernels at the default width (eight lanes with AVX2), at four, and at sixteen (with
+/// AVX-512; elsewhere the widest the processor has): the same results, so the ratios are what
+/// the wider lanes buy.
+const LANE_WIDTHS: [(&str, usize); 3] = [
+    ("", DEFAULT_WIDTH),
+    ("_four_lanes", 4),
+    ("_sixteen_lanes", 16),
+];
 
 fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
@@ -369,7 +374,7 @@ fn bsdfs(c: &mut Criterion) {
                 })
             });
         }
-        limit_width(MAX_WIDTH);
+        limit_width(DEFAULT_WIDTH);
         group.bench_function(format!("{name}_eval_pdf_at_points"), |b| {
             b.iter(|| {
                 for (wo, chunk) in at_points() {
@@ -393,7 +398,7 @@ fn bsdfs(c: &mut Criterion) {
                 })
             });
         }
-        limit_width(MAX_WIDTH);
+        limit_width(DEFAULT_WIDTH);
     }
     group.finish();
 }
@@ -451,7 +456,7 @@ fn area_lights(c: &mut Criterion) {
                 })
             });
         }
-        limit_width(MAX_WIDTH);
+        limit_width(DEFAULT_WIDTH);
     }
     group.finish();
 }
@@ -535,7 +540,7 @@ fn envmap(c: &mut Criterion) {
                 })
             });
         }
-        limit_width(MAX_WIDTH);
+        limit_width(DEFAULT_WIDTH);
         group.bench_function("pdf_direction", |b| {
             b.iter(|| {
                 for &d in directions {
@@ -580,7 +585,7 @@ fn envmap(c: &mut Criterion) {
                 })
             });
         }
-        limit_width(MAX_WIDTH);
+        limit_width(DEFAULT_WIDTH);
         group.finish();
     }
 }

@@ -42,6 +42,11 @@ pub struct RenderArgs {
     /// estimated to need more is refused before anything large is allocated.
     #[arg(long, value_name = "SIZE")]
     memory_limit: Option<String>,
+    /// The widest SIMD lanes of the batch kernels: 4, 8 [default] or 16. Eight need AVX2 and
+    /// sixteen AVX-512; a processor without them runs the widest it has. The image is the
+    /// same, bit for bit, at every width; only the time differs.
+    #[arg(long, value_name = "W", value_parser = parse_lanes)]
+    lanes: Option<usize>,
     /// Override any scene value by its path, e.g. --set integrator.type=balance
     /// --set integrator.samples=64 --set film.width=128 (repeatable).
     #[arg(long = "set", value_name = "PATH=VALUE")]
@@ -377,6 +382,14 @@ fn resume_command(state: &Path) -> String {
     format!("lumis {} --resume {}", args.join(" "), state.display())
 }
 
+/// `--lanes`: 4, 8 or 16.
+fn parse_lanes(text: &str) -> Result<usize, String> {
+    match text.parse() {
+        Ok(width @ (4 | 8 | 16)) => Ok(width),
+        _ => Err(format!("{text:?} is not a lane width: 4, 8 or 16")),
+    }
+}
+
 pub fn render(args: RenderArgs, threads: usize) -> Result<()> {
     let mut overrides = args.overrides.clone();
     if let Some(spp) = args.spp {
@@ -384,6 +397,9 @@ pub fn render(args: RenderArgs, threads: usize) -> Result<()> {
     }
     if let Some(seed) = args.seed {
         overrides.push(format!("sampler.seed={seed}"));
+    }
+    if let Some(width) = args.lanes {
+        lumis::math::lanes::limit_width(width);
     }
     if let Some(limit) = &args.memory_limit {
         limits::set_memory_limit(limit, "--memory-limit").map_err(anyhow::Error::msg)?;

@@ -63,7 +63,7 @@ pub trait TextureLanes {
     fn eval_1_lanes<L: Lanes>(&self, uv: V2<L>) -> L;
 }
 
-/// [`Texture::eval_batch`] of a texture written over [`Lanes`], four or eight at a time.
+/// [`Texture::eval_batch`] of a texture written over [`Lanes`], four, eight or sixteen at a time.
 pub fn eval_in_lanes<T: TextureLanes + ?Sized>(texture: &T, uv: &[Vec2], out: &mut [Rgb]) {
     assert_eq!(uv.len(), out.len(), "one value per point");
     struct Eval<'a, T: ?Sized>(&'a T, &'a [Vec2], &'a mut [Rgb]);

@@ -1,7 +1,8 @@
 //! One formula for one sample or for several: the arithmetic a BSDF or a light needs, written
 //! once over [`Lanes`], which is `f32` (one sample), glam's `Vec4` (four samples in one SSE2 or
-//! NEON register) or eight samples in one AVX register where the processor has AVX2 (a batch
-//! kernel written as a [`LaneKernel`] runs with the widest there is: [`with_widest_lanes`]). A
+//! NEON register), eight samples in one AVX register where the processor has AVX2, or sixteen
+//! in one AVX-512 register on request (a batch kernel written as a [`LaneKernel`] runs with the
+//! widest allowed: [`with_widest_lanes`], [`limit_width`]). A
 //! plugin's scalar method and its batch method then run the same operations in the same order,
 //! so that a sample comes out of the batch bit for bit as out of the scalar call: the batch
 //! path is fast, and every statistical test of the scalar path holds for it. The BVH's node
@@ -13,8 +14,9 @@
 //! with [`Lanes::select`]. Sine, cosine, arc tangent and arc cosine are polynomials in the same
 //! operations (libm's functions have no SIMD form that rounds as they do, and cost more).
 //!
-//! Why one file of over 600 lines: the `Lanes` trait and its three implementations (f32, Vec4, the
-//! AVX2 eight lanes) must stay in step, operation by operation; with its tests.
+//! Why one file of over 600 lines: the `Lanes` trait and its four implementations (f32, Vec4, the
+//! AVX2 eight lanes, the AVX-512 sixteen) must stay in step, operation by operation; with its
+//! tests.
 
 use glam::{BVec4A, Vec2, Vec3, Vec4};
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
@@ -655,7 +657,7 @@ pub fn by_groups<const W: usize, O>(
 }
 
 /// The most lanes a [`Lanes`] type has.
-pub const MAX_WIDTH: usize = 8;
+pub const MAX_WIDTH: usize = 16;
 
 /// A batch kernel written over [`Lanes`]: [`with_widest_lanes`] runs it with the widest lanes
 /// the processor has.
@@ -665,35 +667,72 @@ pub trait LaneKernel {
     fn run<L: Lanes, const W: usize>(self) -> Self::Output;
 }
 
-static WIDTH_LIMIT: AtomicUsize = AtomicUsize::new(MAX_WIDTH);
+/// The widest lanes kernels run with unless [`limit_width`] says otherwise: eight (AVX2).
+/// Sixteen AVX-512 lanes give the same results but are used only on request: on the Zen 4,
+/// which executes a 512-bit operation as two 256-bit halves, they were no faster than eight
+/// (docs/performance.md, "Tried and not kept").
+pub const DEFAULT_WIDTH: usize = 8;
 
-/// Limits the lanes [`with_widest_lanes`] runs kernels with to `width` (4 or more; 8 is used
-/// only where the processor has AVX2), for the whole process: to time one width against the
-/// other, or to test the narrower on a processor that has the wider. The results are the same.
+static WIDTH_LIMIT: AtomicUsize = AtomicUsize::new(DEFAULT_WIDTH);
+
+/// Sets the widest lanes [`with_widest_lanes`] runs kernels with to `width` (4 or more; 8 is
+/// used only where the processor has AVX2, 16 only where it has AVX-512; [`DEFAULT_WIDTH`]
+/// until set), for the whole process: to time one width against another, or to test the
+/// narrower on a processor that has the wider. The results are the same.
 pub fn limit_width(width: usize) {
     assert!(width >= 4, "kernels run at least four lanes wide");
     WIDTH_LIMIT.store(width, Ordering::Relaxed);
 }
 
-/// The lanes [`with_widest_lanes`] runs kernels with: 8 where the processor has AVX2 (and no
-/// [`limit_width`] says fewer), 4 elsewhere.
+/// Whether the processor has the AVX-512 subsets the sixteen lanes use (F for the arithmetic,
+/// DQ for the bitwise operations on floats).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn has_avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+}
+
+/// The lanes [`with_widest_lanes`] runs kernels with: the widest of 16 (where the processor
+/// has AVX-512), 8 (AVX2) and 4 that [`limit_width`] allows.
 #[inline]
 pub fn widest_width() -> usize {
     #[cfg(target_arch = "x86_64")]
-    if WIDTH_LIMIT.load(Ordering::Relaxed) >= 8 && std::arch::is_x86_feature_detected!("avx2") {
-        return 8;
+    {
+        let limit = WIDTH_LIMIT.load(Ordering::Relaxed);
+        if limit >= 16 && has_avx512() {
+            return 16;
+        }
+        if limit >= 8 && std::arch::is_x86_feature_detected!("avx2") {
+            return 8;
+        }
     }
     4
 }
 
-/// Runs `kernel` eight lanes wide (AVX2 registers) where the processor has AVX2, four wide
-/// (`Vec4`: SSE2, or NEON) elsewhere. Each lane computes what an `f32` would, so the results
-/// are the same either way; only the time differs.
+/// Runs `kernel` with [`widest_width`] lanes: sixteen in AVX-512 registers, eight in AVX2
+/// ones, or four (`Vec4`: SSE2, or NEON). Each lane computes what an `f32` would, so the
+/// results are the same either way; only the time differs.
 #[inline(always)]
 pub fn with_widest_lanes<K: LaneKernel>(kernel: K) -> K::Output {
     #[cfg(target_arch = "x86_64")]
-    if widest_width() == 8 {
+    match widest_width() {
+        // SAFETY: the processor has AVX-512 F and DQ (`widest_width` is 16 only then).
+        16 => return unsafe { sixteen::run_avx512(kernel) },
         // SAFETY: the processor has AVX2 (`widest_width` is 8 only then).
+        8 => return unsafe { eight::run_avx2(kernel) },
+        _ => {}
+    }
+    kernel.run::<Vec4, 4>()
+}
+
+/// As [`with_widest_lanes`], but at most eight lanes wide: for a kernel whose sums assign
+/// elements to eight slots whatever the width, so that every width gives the same bits.
+#[inline(always)]
+pub fn with_lanes_up_to_eight<K: LaneKernel>(kernel: K) -> K::Output {
+    #[cfg(target_arch = "x86_64")]
+    if widest_width() >= 8 {
+        // SAFETY: the processor has AVX2 (`widest_width` is 8 or more only then).
         return unsafe { eight::run_avx2(kernel) };
     }
     kernel.run::<Vec4, 4>()
@@ -909,6 +948,216 @@ mod eight {
     }
 }
 
+/// Sixteen lanes in an AVX-512 register, as [`eight`] holds eight in an AVX one: the type is
+/// made only inside [`sixteen::run_avx512`], which runs only where the processor has AVX-512 F
+/// and DQ. Its masks are AVX-512's mask registers, one bit a lane.
+#[cfg(target_arch = "x86_64")]
+mod sixteen {
+    use super::{LaneKernel, Lanes, Mask};
+    use std::arch::x86_64::*;
+    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+
+    /// Runs `kernel` sixteen lanes wide, in AVX-512 registers; the caller checks that the
+    /// processor has AVX-512 F and DQ.
+    #[target_feature(enable = "avx512f,avx512dq")]
+    #[inline]
+    pub(super) fn run_avx512<K: LaneKernel>(kernel: K) -> K::Output {
+        kernel.run::<F32x16, 16>()
+    }
+
+    #[derive(Clone, Copy)]
+    pub(super) struct F32x16(__m512);
+
+    /// Sixteen lanes in memory on a 64-byte boundary, one cache line (see `eight`'s `Aligned`
+    /// for why a vector read back a lane at a time must not straddle two).
+    #[repr(C, align(64))]
+    struct Aligned<T>([T; 16]);
+
+    /// Bit `i` set where lane `i` is true.
+    #[derive(Clone, Copy)]
+    pub(super) struct Mask16(__mmask16);
+
+    // SAFETY (every `unsafe` block below): an `F32x16` exists only inside `run_avx512`, so the
+    // processor has AVX-512 F and DQ.
+
+    macro_rules! binary {
+        ($method:ident, $trait:ident, $intrinsic:ident) => {
+            impl $trait for F32x16 {
+                type Output = Self;
+                #[inline(always)]
+                fn $method(self, rhs: Self) -> Self {
+                    F32x16(unsafe { $intrinsic(self.0, rhs.0) })
+                }
+            }
+        };
+    }
+    binary!(add, Add, _mm512_add_ps);
+    binary!(sub, Sub, _mm512_sub_ps);
+    binary!(mul, Mul, _mm512_mul_ps);
+    binary!(div, Div, _mm512_div_ps);
+
+    impl Neg for F32x16 {
+        type Output = Self;
+        #[inline(always)]
+        fn neg(self) -> Self {
+            F32x16(unsafe { _mm512_xor_ps(self.0, _mm512_set1_ps(-0.0)) })
+        }
+    }
+
+    impl BitAnd for Mask16 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitand(self, rhs: Self) -> Self {
+            Mask16(self.0 & rhs.0)
+        }
+    }
+
+    impl BitOr for Mask16 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitor(self, rhs: Self) -> Self {
+            Mask16(self.0 | rhs.0)
+        }
+    }
+
+    impl Not for Mask16 {
+        type Output = Self;
+        #[inline(always)]
+        fn not(self) -> Self {
+            Mask16(!self.0)
+        }
+    }
+
+    impl Mask for Mask16 {
+        #[inline(always)]
+        fn any(self) -> bool {
+            self.0 != 0
+        }
+        #[inline(always)]
+        fn all(self) -> bool {
+            self.0 == 0xffff
+        }
+        #[inline(always)]
+        fn lane(self, i: usize) -> bool {
+            self.0 >> i & 1 != 0
+        }
+        #[inline(always)]
+        fn from_fn(mut f: impl FnMut(usize) -> bool) -> Self {
+            Mask16((0..16).fold(0, |bits, i| bits | (f(i) as u16) << i))
+        }
+        #[inline(always)]
+        fn bits(self) -> u32 {
+            self.0 as u32
+        }
+    }
+
+    impl F32x16 {
+        #[inline(always)]
+        fn compare<const PREDICATE: i32>(self, rhs: Self) -> Mask16 {
+            Mask16(unsafe { _mm512_cmp_ps_mask::<PREDICATE>(self.0, rhs.0) })
+        }
+    }
+
+    impl Lanes for F32x16 {
+        type Mask = Mask16;
+        const WIDTH: usize = 16;
+
+        #[inline(always)]
+        fn splat(v: f32) -> Self {
+            F32x16(unsafe { _mm512_set1_ps(v) })
+        }
+        #[inline(always)]
+        fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
+            let mut lanes = Aligned([0.0f32; 16]);
+            for (i, lane) in lanes.0.iter_mut().enumerate() {
+                *lane = f(i);
+            }
+            // SAFETY: `Aligned` puts the sixteen f32 on the 64-byte boundary the load needs.
+            F32x16(unsafe { _mm512_load_ps(lanes.0.as_ptr()) })
+        }
+        /// Through an [`Aligned`] copy.
+        #[inline(always)]
+        fn lane(self, i: usize) -> f32 {
+            let mut lanes = Aligned([0.0f32; 16]);
+            // SAFETY: `Aligned` puts the sixteen f32 on the 64-byte boundary the store needs.
+            unsafe { _mm512_store_ps(lanes.0.as_mut_ptr(), self.0) };
+            lanes.0[i]
+        }
+        #[inline(always)]
+        fn load(values: &[f32]) -> Self {
+            assert!(values.len() >= 16, "sixteen values to load");
+            // SAFETY: `values` holds the sixteen f32 the load reads.
+            F32x16(unsafe { _mm512_loadu_ps(values.as_ptr()) })
+        }
+        #[inline(always)]
+        fn store(self, out: &mut [f32]) {
+            assert!(out.len() >= 16, "room for sixteen values");
+            // SAFETY: `out` holds the sixteen f32 the store writes.
+            unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) }
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            F32x16(unsafe { _mm512_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn floor(self) -> Self {
+            // As the eight lanes' floor: rounded toward −∞, then +0 added to make −0 +0.
+            let floor = unsafe {
+                _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(self.0)
+            };
+            F32x16(unsafe { _mm512_add_ps(floor, _mm512_setzero_ps()) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            F32x16(unsafe { _mm512_andnot_ps(_mm512_set1_ps(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn copysign(self, sign: Self) -> Self {
+            unsafe {
+                let sign_bit = _mm512_set1_ps(-0.0);
+                F32x16(_mm512_or_ps(
+                    _mm512_andnot_ps(sign_bit, self.0),
+                    _mm512_and_ps(sign_bit, sign.0),
+                ))
+            }
+        }
+        #[inline(always)]
+        fn lt(self, rhs: Self) -> Mask16 {
+            self.compare::<_CMP_LT_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn le(self, rhs: Self) -> Mask16 {
+            self.compare::<_CMP_LE_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn gt(self, rhs: Self) -> Mask16 {
+            self.compare::<_CMP_GT_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn eq(self, rhs: Self) -> Mask16 {
+            self.compare::<_CMP_EQ_OQ>(rhs)
+        }
+        #[inline(always)]
+        fn is_finite(self) -> Mask16 {
+            self.abs().lt(Self::splat(f32::INFINITY))
+        }
+        #[inline(always)]
+        fn select(mask: Mask16, if_true: Self, if_false: Self) -> Self {
+            F32x16(unsafe { _mm512_mask_blend_ps(mask.0, if_false.0, if_true.0) })
+        }
+        /// `vminps`, the trait's `self < rhs ? self : rhs`, NaN and zeros included.
+        #[inline(always)]
+        fn min(self, rhs: Self) -> Self {
+            F32x16(unsafe { _mm512_min_ps(self.0, rhs.0) })
+        }
+        /// `vmaxps`, `self > rhs ? self : rhs`.
+        #[inline(always)]
+        fn max(self, rhs: Self) -> Self {
+            F32x16(unsafe { _mm512_max_ps(self.0, rhs.0) })
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1007,25 +1256,29 @@ mod tests {
         }
     }
 
-    /// Every operation gives in each lane of four (`Vec4`) and of the widest lanes the
-    /// processor has (eight with AVX2) what it gives on an `f32`; and the widest are eight
-    /// exactly where AVX2 is there.
+    /// Every operation gives in each lane of four (`Vec4`), eight (AVX2) and sixteen (AVX-512)
+    /// what it gives on an `f32`, for each width the processor has; the widest allowed are the
+    /// default eight unless more are asked for, and never wider than the processor's.
     #[test]
     fn lanes_of_every_width_compute_as_one() {
         assert_eq!(ComputeAsOne.run::<Vec4, 4>(), 4);
-        let widest = with_widest_lanes(ComputeAsOne);
-        assert_eq!(widest_width(), widest);
         #[cfg(target_arch = "x86_64")]
-        assert_eq!(
-            widest,
-            if std::arch::is_x86_feature_detected!("avx2") {
-                8
-            } else {
-                4
-            }
-        );
+        let (has_avx2, has_avx512) = (std::arch::is_x86_feature_detected!("avx2"), has_avx512());
         #[cfg(not(target_arch = "x86_64"))]
-        assert_eq!(widest, 4);
+        let (has_avx2, has_avx512) = (false, false);
+        let expected = |limit: usize| match limit {
+            16.. if has_avx512 => 16,
+            8.. if has_avx2 => 8,
+            _ => 4,
+        };
+        for limit in [4, 8, 16] {
+            limit_width(limit);
+            assert_eq!(widest_width(), expected(limit), "limited to {limit}");
+            assert_eq!(with_widest_lanes(ComputeAsOne), expected(limit));
+            assert_eq!(with_lanes_up_to_eight(ComputeAsOne), expected(limit.min(8)));
+        }
+        limit_width(DEFAULT_WIDTH);
+        assert_eq!(widest_width(), expected(8), "eight by default");
     }
 
     /// A `V3` of four lanes normalises, crosses and dots as glam's `Vec3` does.
@@ -1155,10 +1408,10 @@ mod tests {
         outputs
     }
 
-    /// Groups of four and of eight cover every output once.
+    /// Groups of four, eight and sixteen cover every output once.
     #[test]
     fn groups_cover_every_input_once() {
-        for len in [1, 3, 4, 7, 8, 9, 17] {
+        for len in [1, 3, 4, 7, 8, 9, 15, 16, 17, 33] {
             let expected: Vec<f32> = (0..len).map(|i| 2.0 * i as f32).collect();
             assert_eq!(
                 doubled_by_groups::<4>(len),
@@ -1169,6 +1422,11 @@ mod tests {
                 doubled_by_groups::<8>(len),
                 expected,
                 "groups of eight, {len} outputs"
+            );
+            assert_eq!(
+                doubled_by_groups::<16>(len),
+                expected,
+                "groups of sixteen, {len} outputs"
             );
         }
     }

@@ -12,7 +12,7 @@ use lumis_core::bsdf::{Bsdf, BsdfContext, Side};
 use lumis_core::chi2::{
     Chi2Test, FAMILY_FALSE_ALARM, run_side_by_side, sidak, test_bsdf, test_seed, z_limit,
 };
-use lumis_core::math::lanes::{MAX_WIDTH, limit_width};
+use lumis_core::math::lanes::{DEFAULT_WIDTH, limit_width};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, BsdfPlugin};
 use lumis_core::sampler::Sampler;
@@ -595,9 +595,9 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
 
 /// The batch entry points give what the single calls give, bit for bit: `sample_batch` what
 /// `sample` gives for each `(u_lobe, u)`, `eval_pdf_batch` what `eval_pdf` gives for each
-/// direction. At both kernel widths (four lanes, and eight where the processor has AVX2), for
-/// batches of every length a group of four or eight can end with (1 to 7 left over, and longer
-/// ones), of one ωo (one shading point) or of several (one per camera sample), for ωo at the
+/// direction. At every kernel width (four lanes, eight where the processor has AVX2, sixteen
+/// where it has AVX-512), for batches of every length a group of four, eight or sixteen can end
+/// with (1 to 15 left over, and longer ones), of one ωo (one shading point) or of several (one per camera sample), for ωo at the
 /// test incidences and hostile ones (below the horizon, grazing, exactly normal, a hair above
 /// the horizon, off the normal by 1e-20); the numbers from a seeded stream with the corners 0,
 /// 1/2 and 0.9999999 in some lanes, the directions sampled, uniform over the sphere and special
@@ -605,7 +605,7 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
 /// sentinel, so an element the batch leaves unwritten fails.
 #[test]
 fn batches_give_what_single_calls_give_bit_for_bit() {
-    const LENGTHS: [usize; 10] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 64];
+    const LENGTHS: [usize; 12] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 17, 33, 64];
     const ROUNDS: usize = 40;
     const CORNERS: [f32; 3] = [0.0, 0.5, 0.999_999_9];
     let hostile = [
@@ -658,8 +658,9 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
     // Batches in which some lanes give a sample and others none, with wo above the horizon:
     // where a lane's mask matters.
     let mut mixed = 0usize;
-    // Both kernel widths, four and (with AVX2) eight: the same results either way.
-    for width in [4, MAX_WIDTH] {
+    // Every kernel width, four, eight (with AVX2) and sixteen (with AVX-512): the same results
+    // either way.
+    for width in [4, 8, 16] {
         limit_width(width);
         for (name, b) in all_bsdfs() {
             let (mut some_above, mut positive_above) = (0usize, 0usize);
@@ -786,7 +787,7 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
             );
         }
     }
-    limit_width(MAX_WIDTH);
+    limit_width(DEFAULT_WIDTH);
     assert!(
         mixed >= 100,
         "only {mixed} batches mixed samples and failed ones"

@@ -12,7 +12,7 @@ use lumis_core::chi2::{
 use lumis_core::emitter::{Emitter, EmitterContext, EmitterHit, ReferencePoint};
 use lumis_core::geometry::{self, Geometry, Ray, ShapeGeometry, Sphere};
 use lumis_core::math::Rgb;
-use lumis_core::math::lanes::{MAX_WIDTH, limit_width};
+use lumis_core::math::lanes::{DEFAULT_WIDTH, limit_width};
 use lumis_core::params::Params;
 use lumis_core::registry::{self, EmitterPlugin};
 use lumis_emitters::envmap::EnvironmentMap;
@@ -696,15 +696,15 @@ fn light_on_triangles(params: &str) -> ShapeLight {
 /// different areas, seen from in front, from behind, from within their plane and from on them)
 /// and on spheres (one- and two-sided, from far, mid, near, just outside, on the surface and
 /// inside, where the sampling switches from cone to area), and the environment map, whose
-/// batches run in lanes, at both widths (four, and eight where the processor has AVX2); and
-/// the delta lights, which use the trait's default. Batches of every length a group of four or
-/// eight can end with, of u from a seeded stream with, in some lanes, values on and next to the
+/// batches run in lanes, at every width (four, eight where the processor has AVX2, sixteen where
+/// it has AVX-512); and the delta lights, which use the trait's default. Batches of every length
+/// a group of four, eight or sixteen can end with, of u from a seeded stream with, in some lanes, values on and next to the
 /// edges of the warps (points on a triangle's edge, the cone's rim, the diagonal u.x = u.y of
 /// the triangle warp). Each output starts as a NaN sentinel, so an element the batch leaves
 /// unwritten fails.
 #[test]
 fn batches_give_what_single_calls_give_bit_for_bit() {
-    const LENGTHS: [usize; 10] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 64];
+    const LENGTHS: [usize; 12] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 17, 33, 64];
     const ROUNDS: usize = 12;
     let bits = |s: &Option<lumis_core::emitter::EmitterSample>| {
         s.map(|s| {
@@ -859,8 +859,9 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
     ];
     let mut s = test_sampler(9);
     let mut mixed_area = 0;
-    // Both kernel widths, four and (with AVX2) eight: the same results either way.
-    for width in [4, MAX_WIDTH] {
+    // Every kernel width, four, eight (with AVX2) and sixteen (with AVX-512): the same results
+    // either way.
+    for width in [4, 8, 16] {
         limit_width(width);
         for (name, light, from) in &cases {
             let (mut some, mut none, mut mixed) = (0usize, 0usize, 0usize);
@@ -935,7 +936,7 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
             }
         }
     }
-    limit_width(MAX_WIDTH);
+    limit_width(DEFAULT_WIDTH);
     // Batches of area lights in which some lanes give a sample and others none (points on
     // edges, faces seen edge-on or from behind): where a lane's mask matters.
     assert!(
@@ -951,7 +952,7 @@ fn batches_give_what_single_calls_give_bit_for_bit() {
 /// them. Each output starts as a NaN sentinel, so an element the batch leaves unwritten fails.
 #[test]
 fn eval_pdf_batches_give_what_single_calls_give_bit_for_bit() {
-    const LENGTHS: [usize; 10] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 64];
+    const LENGTHS: [usize; 12] = [1, 2, 3, 4, 5, 7, 8, 9, 15, 17, 33, 64];
     let maps = [
         ("envmap", "\"file\": \"scenes/envmaps/studio.exr\""),
         (
@@ -980,7 +981,7 @@ fn eval_pdf_batches_give_what_single_calls_give_bit_for_bit() {
     ];
     let bits = |(le, pdf): (Rgb, f32)| (le.to_array().map(f32::to_bits), pdf.to_bits());
     let mut s = test_sampler(13);
-    for width in [4, MAX_WIDTH] {
+    for width in [4, 8, 16] {
         limit_width(width);
         for (name, params) in maps {
             let map = emitter("envmap", params, None);
@@ -1036,5 +1037,5 @@ fn eval_pdf_batches_give_what_single_calls_give_bit_for_bit() {
             );
         }
     }
-    limit_width(MAX_WIDTH);
+    limit_width(DEFAULT_WIDTH);
 }

@@ -5,7 +5,7 @@
 
 use crate::estimator::SampleRecord;
 use crate::phase::{Observer, Phase};
-use lumis_core::math::lanes::{LaneKernel, Lanes, MAX_WIDTH, Mask, V3, with_widest_lanes};
+use lumis_core::math::lanes::{LaneKernel, Lanes, Mask, V3, with_lanes_up_to_eight};
 use lumis_core::math::{Rgb, luminance, luminance_lanes};
 
 /// The paper's sums over samples drawn at α = ½ (a stratified sample of p̄): M·Î₁ = Σ f²Δp/p̄³
@@ -71,7 +71,7 @@ impl SecondOrderMoments {
 impl Observer for SecondOrderMoments {
     fn observe(&mut self, phase: &Phase, _contributions: &[Rgb]) {
         for block in phase.records.chunks(BLOCK) {
-            match with_widest_lanes(BlockTerms { records: block }) {
+            match with_lanes_up_to_eight(BlockTerms { records: block }) {
                 Some((i1, i2)) => {
                     self.i1 += i1;
                     self.i2 += i2;
@@ -83,8 +83,12 @@ impl Observer for SecondOrderMoments {
 }
 
 /// Records whose terms are summed in `f32` lanes before their sums join the f64 totals: each of
-/// the eight slots then sums at most eight terms in `f32`.
+/// the [`SLOTS`] slots then sums at most eight terms in `f32`.
 pub const BLOCK: usize = 64;
+
+/// The slots a block's terms are summed in, record k in slot k mod `SLOTS`, whatever the lanes'
+/// width (at most eight: [`with_lanes_up_to_eight`]).
+pub const SLOTS: usize = 8;
 
 /// The smallest sum of a block's Î₂ terms kept from the lanes: from about 10⁻³⁸ `f32` loses
 /// digits, so a block of samples this dim (or with p_B = p_L everywhere, where Î₂ is 0) is
@@ -102,10 +106,10 @@ impl LaneKernel for BlockTerms<'_> {
 
     #[inline(always)]
     fn run<L: Lanes, const W: usize>(self) -> Self::Output {
-        // Record k is summed in slot k mod MAX_WIDTH whatever the width, and the slots in
-        // order, so that four and eight lanes give the same bits.
-        let mut sums = [(L::splat(0.0), L::splat(0.0)); MAX_WIDTH];
-        let slots = MAX_WIDTH / W;
+        // Record k is summed in slot k mod SLOTS whatever the width, and the slots in order,
+        // so that four and eight lanes give the same bits.
+        let mut sums = [(L::splat(0.0), L::splat(0.0)); SLOTS];
+        let slots = SLOTS / W;
         let mut lit = L::Mask::from_fn(|_| false);
         let groups = self.records.chunks_exact(W);
         let rest = groups.remainder();

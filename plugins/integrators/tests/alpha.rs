@@ -236,7 +236,7 @@ mod moments {
 /// The tests of `lumis_integrators::second_order` (`plugins/integrators/src/second_order.rs`).
 mod second_order {
     use lumis_core::math::Rgb;
-    use lumis_core::math::lanes::MAX_WIDTH;
+    use lumis_core::math::lanes::DEFAULT_WIDTH;
     use lumis_integrators::estimator::SampleRecord;
     use lumis_integrators::phase::Observer;
     use lumis_integrators::phase::SampleSplit;
@@ -341,7 +341,7 @@ mod second_order {
         // Σ|term|, n = 12 and 17 (pbrt-v4's γ(n) = nε/(1 − nε), ε = 2⁻²⁴).
         let gamma =
             |n: f64| n * f64::from(f32::EPSILON) / 2.0 / (1.0 - n * f64::from(f32::EPSILON) / 2.0);
-        let sums = gamma((BLOCK / MAX_WIDTH - 1) as f64);
+        let sums = gamma((BLOCK / SLOTS - 1) as f64);
         let bound = |n: f64| (1.0 + gamma(n)) * (1.0 + sums) - 1.0;
         let (bound_i1, bound_i2) = (bound(12.0), bound(17.0));
         for n in [1, 7, 8, 9, 31, 64, 65, 150] {
@@ -367,14 +367,17 @@ mod second_order {
     }
 
     #[test]
-    fn four_and_eight_lanes_give_the_same_bits() {
+    fn every_width_gives_the_same_bits() {
         let records = varied_records(150, 9);
         lumis_core::math::lanes::limit_width(4);
         let four = observed(&records);
-        lumis_core::math::lanes::limit_width(MAX_WIDTH);
-        let widest = observed(&records);
-        assert_eq!(four.i1.to_bits(), widest.i1.to_bits());
-        assert_eq!(four.i2.to_bits(), widest.i2.to_bits());
+        for width in [8, 16] {
+            lumis_core::math::lanes::limit_width(width);
+            let wider = observed(&records);
+            assert_eq!(four.i1.to_bits(), wider.i1.to_bits(), "{width} lanes");
+            assert_eq!(four.i2.to_bits(), wider.i2.to_bits(), "{width} lanes");
+        }
+        lumis_core::math::lanes::limit_width(DEFAULT_WIDTH);
     }
 
     #[test]
