@@ -669,9 +669,10 @@ pub trait LaneKernel {
 
 /// The widest lanes kernels run with unless [`limit_width`] says otherwise: eight (AVX2).
 /// Sixteen AVX-512 lanes give the same results but are used only on request: on the Zen 4,
-/// which executes a 512-bit operation as two 256-bit halves, they were within a few per cent of
-/// eight either way, and on an Intel Xeon 8–11 % slower (docs/performance.md, "Tried and not
-/// kept").
+/// which executes a 512-bit operation as two 256-bit halves, they gained at most 12 % in one
+/// binary (Cornell's interval; Veach's and the dragon's held no gain) and lost up to 10 %
+/// against another build, and on an Intel Xeon they were 8–11 % slower (docs/performance.md,
+/// "Tried and not kept").
 pub const DEFAULT_WIDTH: usize = 8;
 
 static WIDTH_LIMIT: AtomicUsize = AtomicUsize::new(DEFAULT_WIDTH);

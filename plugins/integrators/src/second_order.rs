@@ -107,7 +107,8 @@ impl LaneKernel for BlockTerms<'_> {
     #[inline(always)]
     fn run<L: Lanes, const W: usize>(self) -> Self::Output {
         // Record k is summed in slot k mod SLOTS whatever the width, and the slots in order,
-        // so that four and eight lanes give the same bits.
+        // so that four and eight lanes give the same bits; wider lanes could not keep it.
+        const { assert!(W <= SLOTS, "at most SLOTS lanes") };
         let mut sums = [(L::splat(0.0), L::splat(0.0)); SLOTS];
         let slots = SLOTS / W;
         let mut lit = L::Mask::from_fn(|_| false);
