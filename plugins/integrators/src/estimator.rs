@@ -494,11 +494,7 @@ impl<'a> BsdfRecords<'a> {
         records: &mut Vec<SampleRecord>,
         deferred: Option<&mut DeferredLookups>,
     ) {
-        if self.sp.flags.transmission() {
-            self.push::<true>(s, records, deferred);
-        } else {
-            self.push::<false>(s, records, deferred);
-        }
+        self.push_outcome(self.outcome_any(s), records, deferred);
     }
 
     /// Appends the record of BSDF sample `s` (`None`: no direction drawn), as
@@ -512,11 +508,7 @@ impl<'a> BsdfRecords<'a> {
         records: &mut Vec<SampleRecord>,
         deferred: Option<&mut DeferredLookups>,
     ) {
-        let (scene, light, light_shape, from) =
-            (self.scene, self.light, self.light_shape, &self.sp.hit);
-        self.push_reaching::<TRANSMITS>(s, records, deferred, |ray| {
-            reaches_light(scene, light, light_shape, ray, from)
-        });
+        self.push_outcome(self.outcome::<TRANSMITS>(s), records, deferred);
     }
 
     /// [`push`](Self::push) for the BSDF sample a path goes on along: its ray is traced to the
@@ -530,6 +522,49 @@ impl<'a> BsdfRecords<'a> {
         records: &mut Vec<SampleRecord>,
         deferred: Option<&mut DeferredLookups>,
     ) -> Option<Continuation> {
+        let (outcome, continuation) = self.continuing_outcome(s);
+        self.push_outcome(outcome, records, deferred);
+        continuation
+    }
+
+    /// The record of BSDF sample `s`, as [`push_any`](Self::push_any) would append it once
+    /// its lookup, if any, is done.
+    #[inline(always)]
+    pub(crate) fn record_any(&self, s: Option<&BsdfSample>) -> SampleRecord {
+        self.record_now(self.outcome_any(s))
+    }
+
+    /// The record of BSDF sample `s` and the path's continuation along it, as
+    /// [`push_continuing`](Self::push_continuing) gives them once its lookup, if any, is done.
+    #[inline(always)]
+    pub(crate) fn record_continuing(
+        &self,
+        s: Option<&BsdfSample>,
+    ) -> (SampleRecord, Option<Continuation>) {
+        let (outcome, continuation) = self.continuing_outcome(s);
+        (self.record_now(outcome), continuation)
+    }
+
+    #[inline(always)]
+    fn outcome_any(&self, s: Option<&BsdfSample>) -> BsdfOutcome {
+        if self.sp.flags.transmission() {
+            self.outcome::<true>(s)
+        } else {
+            self.outcome::<false>(s)
+        }
+    }
+
+    #[inline(always)]
+    fn outcome<const TRANSMITS: bool>(&self, s: Option<&BsdfSample>) -> BsdfOutcome {
+        let (scene, light, light_shape, from) =
+            (self.scene, self.light, self.light_shape, &self.sp.hit);
+        self.outcome_reaching::<TRANSMITS>(s, |ray| {
+            reaches_light(scene, light, light_shape, ray, from)
+        })
+    }
+
+    #[inline(always)]
+    fn continuing_outcome(&self, s: Option<&BsdfSample>) -> (BsdfOutcome, Option<Continuation>) {
         let (scene, light, light_shape, from) =
             (self.scene, self.light, self.light_shape, &self.sp.hit);
         let mut traced = None;
@@ -541,29 +576,62 @@ impl<'a> BsdfRecords<'a> {
             traced = Some((*ray, hit));
             reached_from(scene, light, light_shape, ray, hit.as_ref())
         };
-        if self.sp.flags.transmission() {
-            self.push_reaching::<true>(s, records, deferred, reach);
+        let outcome = if self.sp.flags.transmission() {
+            self.outcome_reaching::<true>(s, reach)
         } else {
-            self.push_reaching::<false>(s, records, deferred, reach);
-        }
-        let (ray, hit) = traced?;
-        Some(Continuation {
-            sample: *s?,
-            ray,
-            hit,
-        })
+            self.outcome_reaching::<false>(s, reach)
+        };
+        let continuation = traced.and_then(|(ray, hit)| {
+            Some(Continuation {
+                sample: *s?,
+                ray,
+                hit,
+            })
+        });
+        (outcome, continuation)
     }
 
-    /// [`push`](Self::push) with what the sample's ray finds of the light given by `reach`
-    /// (called once, only for a sample that leaves on a side the BSDF scatters toward).
+    /// Appends `outcome`'s record, or leaves it to `deferred` (a placeholder appended).
     #[inline(always)]
-    fn push_reaching<const TRANSMITS: bool>(
+    fn push_outcome(
         &self,
-        s: Option<&BsdfSample>,
+        outcome: BsdfOutcome,
         records: &mut Vec<SampleRecord>,
         deferred: Option<&mut DeferredLookups>,
-        reach: impl FnOnce(&Ray) -> Reached,
     ) {
+        match (outcome, deferred) {
+            (BsdfOutcome::Environment(sample, wi), Some(deferred)) => {
+                deferred.0.push(DeferredLookup {
+                    record: records.len(),
+                    sample,
+                    wi,
+                });
+                records.push(SampleRecord::default());
+            }
+            (outcome, _) => records.push(self.record_now(outcome)),
+        }
+    }
+
+    /// `outcome`'s record, an environment's looked up now.
+    #[inline(always)]
+    fn record_now(&self, outcome: BsdfOutcome) -> SampleRecord {
+        match outcome {
+            BsdfOutcome::Record(record) => record,
+            BsdfOutcome::Environment(sample, wi) => {
+                let (le, p_light) = self.emitter.eval_pdf(&self.reference, wi, None);
+                reached_record(&sample, le, || p_light)
+            }
+        }
+    }
+
+    /// What BSDF sample `s` gives, with what the sample's ray finds of the light given by
+    /// `reach` (called once, only for a sample that leaves on a side the BSDF scatters toward).
+    #[inline(always)]
+    fn outcome_reaching<const TRANSMITS: bool>(
+        &self,
+        s: Option<&BsdfSample>,
+        reach: impl FnOnce(&Ray) -> Reached,
+    ) -> BsdfOutcome {
         let BsdfRecords {
             scene,
             sp,
@@ -574,8 +642,7 @@ impl<'a> BsdfRecords<'a> {
             densities,
         } = *self;
         let Some(s) = s else {
-            records.push(SampleRecord::default());
-            return;
+            return BsdfOutcome::Record(SampleRecord::default());
         };
         let black = SampleRecord {
             p_bsdf: s.pdf,
@@ -586,40 +653,34 @@ impl<'a> BsdfRecords<'a> {
         let ray = sp.origin.ray(&sp.hit, wi);
         // A black sample's light density, when asked for (a Dirac sample has none to match).
         let black = || {
-            if densities == Densities::Both && !s.delta {
+            BsdfOutcome::Record(if densities == Densities::Both && !s.delta {
                 SampleRecord {
                     p_light: light_density_toward(scene, light, light_shape, &reference, &ray),
                     ..black
                 }
             } else {
                 black
-            }
+            })
         };
         if !sp.leaves_toward::<TRANSMITS>(wi, s.wi) {
-            records.push(black());
-            return;
+            return black();
         }
         match reach(&ray) {
-            Reached::Nothing => records.push(black()),
-            Reached::Surface(hit, le) => records.push(reached_record(s, le, || {
+            Reached::Nothing => black(),
+            Reached::Surface(hit, le) => BsdfOutcome::Record(reached_record(s, le, || {
                 emitter.pdf_direction(&reference, wi, Some(&hit))
             })),
-            Reached::Environment => match deferred {
-                Some(deferred) => {
-                    deferred.0.push(DeferredLookup {
-                        record: records.len(),
-                        sample: *s,
-                        wi,
-                    });
-                    records.push(SampleRecord::default());
-                }
-                None => {
-                    let (le, p_light) = emitter.eval_pdf(&reference, wi, None);
-                    records.push(reached_record(s, le, || p_light));
-                }
-            },
+            Reached::Environment => BsdfOutcome::Environment(*s, wi),
         }
     }
+}
+
+/// What a BSDF sample gives a phase: its record, or, for a sample whose ray reached the
+/// environment unblocked, the sample and its direction, whose record the environment's lookup
+/// gives.
+enum BsdfOutcome {
+    Record(SampleRecord),
+    Environment(BsdfSample, Vec3),
 }
 
 /// Draws `count` samples of non-delta light `light` for `sp` and appends their records, with

@@ -2,7 +2,7 @@
 //! (α = ½), `alpha` in fixed mode and `optimal_mis` in direct mode.
 
 use crate::allocation::{Allocation, estimate_each};
-use crate::phase::{LightEstimate, PhaseRole, SampleSplit};
+use crate::phase::{EstimatesOnly, LightEstimate, PhaseRole, SampleSplit};
 use crate::sampling::LightSampling;
 use crate::weighting::Weighting;
 use lumis_core::geometry::PACKET_SIZE;
@@ -103,7 +103,7 @@ impl FixedAlpha {
                 splits,
                 PhaseRole::ESTIMATE,
                 weighting,
-                &mut [(); CHUNK],
+                &mut [EstimatesOnly; CHUNK],
                 values,
             );
             let results = samplings.iter().zip(splits).zip(values.iter());

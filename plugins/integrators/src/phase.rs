@@ -118,10 +118,35 @@ pub trait Observer {
     /// `contributions[i]` is record i's weighted contribution to the phase's estimate (their
     /// sum is the estimate; zero for black records).
     fn observe(&mut self, phase: &Phase, contributions: &[Rgb]);
+
+    /// Whether the records of the phases it is given are read, by `observe` or afterwards by
+    /// the caller ([`LightSampling::last_phase`]). Where none of a packet's phases' are, and
+    /// the weighting weighs each record alone, the phases are summed as their records are
+    /// drawn ([`LightSampling::phases_together`]), none kept, and `observe` is not called.
+    ///
+    /// [`LightSampling::last_phase`]: crate::sampling::LightSampling::last_phase
+    /// [`LightSampling::phases_together`]: crate::sampling::LightSampling::phases_together
+    fn reads_records(&self) -> bool {
+        true
+    }
 }
 
-/// No observer.
+/// No observer (the caller may still read the last phase's records).
 impl Observer for () {
     #[inline]
     fn observe(&mut self, _phase: &Phase, _contributions: &[Rgb]) {}
+}
+
+/// No observer, and a caller that reads only the phases' estimates, not their records.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EstimatesOnly;
+
+impl Observer for EstimatesOnly {
+    #[inline]
+    fn observe(&mut self, _phase: &Phase, _contributions: &[Rgb]) {}
+
+    #[inline]
+    fn reads_records(&self) -> bool {
+        false
+    }
 }

@@ -278,6 +278,13 @@ impl<'a> LightSampling<'a> {
     /// every sampling gets what `phase` would give it, bit for bit: a sampling whose
     /// continuation slot is wanted takes its first BSDF sample as the path's continuation, as
     /// `phase` does.
+    ///
+    /// Where neither the observers nor the caller read the records
+    /// ([`Observer::reads_records`]), no AOV statistics are asked for, the weighting weighs
+    /// each record alone ([`Weighting::weighs_records_alone`]) and the light is not the
+    /// environment (whose BSDF samples' lookups are batched after the light samples), each
+    /// record is weighed and added to its estimate as it is drawn, in the order `weigh` sums
+    /// them, and none is kept: [`last_phase`](Self::last_phase) is then `None`.
     // Inlined: called for packets and for `path`'s waves, it was no longer inlined into either,
     // and the packets' instructions rose 0.3 %.
     #[inline(always)]
@@ -298,6 +305,19 @@ impl<'a> LightSampling<'a> {
         else {
             return;
         };
+        // Summed as drawn, no records kept, where nothing reads the records but a weighting
+        // that weighs each alone; an environment's BSDF samples keep their batched lookups.
+        let summed_as_drawn = weighting.weighs_records_alone()
+            && scene.environment != Some(light)
+            && !observers[..samplings.len()].iter().any(O::reads_records)
+            && samplings.iter().flatten().all(|s| s.tally.is_none());
+        if summed_as_drawn {
+            for (sampling, value) in samplings.iter().zip(values.iter_mut()) {
+                if sampling.is_some() {
+                    *value = Rgb::ZERO;
+                }
+            }
+        }
         // One context for every entry where the points share theirs (the same side, no
         // texture coordinates): the batch calls then take it once instead of one per entry.
         let shared = shared_context(samplings);
@@ -323,10 +343,25 @@ impl<'a> LightSampling<'a> {
             scratch.sample_bsdfs(|k| point_of(k).expect("an owner has a sampling").bsdf);
             for (&owner, s) in scratch.owners.iter().zip(&scratch.bsdf_samples) {
                 let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
+                let bsdf_records = BsdfRecords::new(scene, sampling.point, light, densities);
+                if summed_as_drawn {
+                    let record = match sampling.continuation.as_deref_mut() {
+                        Some(slot) if slot.is_wanted() => {
+                            let (record, continuation) = bsdf_records.record_continuing(s.as_ref());
+                            *slot = ContinuationSlot::Drawn(continuation);
+                            record
+                        }
+                        _ => bsdf_records.record_any(s.as_ref()),
+                    };
+                    if !record.is_black() {
+                        values[owner] +=
+                            weighting.record_contribution(splits[owner], true, &record);
+                    }
+                    continue;
+                }
                 let PhaseBuffers {
                     records, deferred, ..
                 } = &mut *sampling.buffers;
-                let bsdf_records = BsdfRecords::new(scene, sampling.point, light, densities);
                 match sampling.continuation.as_deref_mut() {
                     // A point's first BSDF sample, the one `phase` would take (the slot is
                     // then drawn, and its later samples are not).
@@ -360,7 +395,7 @@ impl<'a> LightSampling<'a> {
             scratch.sample_light(scene.emitters[light].as_ref(), |k| {
                 point_of(k).expect("an owner has a sampling")
             });
-            for (((&owner, ls), &value), wi) in scratch
+            for (((&owner, ls), &bsdf_value), wi) in scratch
                 .owners
                 .iter()
                 .zip(&scratch.light_samples)
@@ -368,16 +403,27 @@ impl<'a> LightSampling<'a> {
                 .zip(&scratch.directions)
             {
                 let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
-                sampling.buffers.records.push(match ls {
+                let record = match ls {
                     Some(ls) => {
                         let point = sampling.point;
-                        light_record_any(scene, point, light, ls, wi.z, densities, || value)
+                        light_record_any(scene, point, light, ls, wi.z, densities, || bsdf_value)
                     }
                     None => SampleRecord::default(),
-                });
+                };
+                if !summed_as_drawn {
+                    sampling.buffers.records.push(record);
+                } else if !record.is_black() {
+                    values[owner] += weighting.record_contribution(splits[owner], false, &record);
+                }
             }
             Self::look_up_together(scene, light, samplings, scratch);
         });
+        if summed_as_drawn {
+            for sampling in samplings.iter_mut().flatten() {
+                sampling.last_phase = None;
+            }
+            return;
+        }
         let finished = samplings.iter_mut().zip(splits).zip(observers).zip(values);
         for (((sampling, &split), observer), value) in finished {
             if let Some(sampling) = sampling {
@@ -468,7 +514,9 @@ impl<'a> LightSampling<'a> {
 
     /// The last phase drawn and its records' contributions, until the next phase replaces
     /// them: for an allocation that needs a pilot's samples themselves (e.g. to minimise a
-    /// function of all of them), not only what an observer accumulated.
+    /// function of all of them), not only what an observer accumulated. `None` before the
+    /// first phase, and after phases summed as they were drawn
+    /// ([`phases_together`](Self::phases_together)).
     pub fn last_phase(&self) -> Option<(Phase<'_>, &[Rgb])> {
         let (split, role) = self.last_phase?;
         let phase = Phase {

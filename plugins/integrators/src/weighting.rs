@@ -32,6 +32,30 @@ pub trait Weighting: Send + Sync {
         false
     }
 
+    /// Whether each record's contribution depends on that record alone (a per-sample
+    /// heuristic), so that [`record_contribution`](Self::record_contribution) gives it: a phase
+    /// that no observer sees is then summed as its records are drawn, none kept
+    /// ([`LightSampling::phases_together`]). The default, false, for weightings that need the
+    /// whole phase.
+    ///
+    /// [`LightSampling::phases_together`]: crate::sampling::LightSampling::phases_together
+    fn weighs_records_alone(&self) -> bool {
+        false
+    }
+
+    /// The contribution of non-black `record` (drawn by the BSDF if `from_bsdf`, else by the
+    /// light) to a phase of `split`, bit for bit what `weigh` writes for it. Only called where
+    /// [`weighs_records_alone`](Self::weighs_records_alone) is true, which a weighting must not
+    /// say without overriding this (the default gives zero).
+    fn record_contribution(
+        &self,
+        _split: SampleSplit,
+        _from_bsdf: bool,
+        _record: &SampleRecord,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
+
     /// Work once per scene before rendering (e.g. a pilot pass that measures per-technique
     /// statistics per block of pixels, which `weigh` then reads through `phase.pixel`).
     fn preprocess(&mut self, _scene: &Scene) {}
@@ -48,6 +72,21 @@ impl<W: Weighting + ?Sized> Weighting for Box<W> {
     #[inline]
     fn needs_both_densities(&self) -> bool {
         (**self).needs_both_densities()
+    }
+
+    #[inline]
+    fn weighs_records_alone(&self) -> bool {
+        (**self).weighs_records_alone()
+    }
+
+    #[inline]
+    fn record_contribution(
+        &self,
+        split: SampleSplit,
+        from_bsdf: bool,
+        record: &SampleRecord,
+    ) -> Rgb {
+        (**self).record_contribution(split, from_bsdf, record)
     }
 
     fn preprocess(&mut self, scene: &Scene) {
@@ -186,30 +225,36 @@ impl<H: Heuristic> PerSample<H> {
     /// set-up for the lanes.
     #[inline(always)]
     fn weigh_each(&self, phase: &Phase, contributions: &mut [Rgb], products: Products) -> Rgb {
-        let Products { n, k, factor } = products;
         let n_bsdf = phase.split.n_bsdf as usize;
         let mut value = Rgb::ZERO;
         for (i, (r, c)) in phase.records.iter().zip(contributions).enumerate() {
             if r.is_black() {
                 continue;
             }
-            // Technique 0 is the BSDF's, 1 the light's.
-            let (own, other) = if i < n_bsdf { (0, 1) } else { (1, 0) };
-            *c = if r.delta {
-                r.f / n[own]
-            } else {
-                let p = [r.p_bsdf, r.p_light];
-                let (mine, theirs) = (p[own] * k[own], p[other] * k[other]);
-                let w = if mine == theirs {
-                    0.5
-                } else {
-                    self.0.weight(mine, theirs)
-                };
-                r.f * (w / mine * factor[own])
-            };
+            *c = self.contribution(products, i < n_bsdf, r);
             value += *c;
         }
         value
+    }
+
+    /// The contribution of non-black record `r`, drawn by the BSDF if `from_bsdf`.
+    #[inline(always)]
+    fn contribution(&self, products: Products, from_bsdf: bool, r: &SampleRecord) -> Rgb {
+        let Products { n, k, factor } = products;
+        // Technique 0 is the BSDF's, 1 the light's.
+        let (own, other) = if from_bsdf { (0, 1) } else { (1, 0) };
+        if r.delta {
+            r.f / n[own]
+        } else {
+            let p = [r.p_bsdf, r.p_light];
+            let (mine, theirs) = (p[own] * k[own], p[other] * k[other]);
+            let w = if mine == theirs {
+                0.5
+            } else {
+                self.0.weight(mine, theirs)
+            };
+            r.f * (w / mine * factor[own])
+        }
     }
 }
 
@@ -241,6 +286,21 @@ impl Products {
 impl<H: Heuristic> Weighting for PerSample<H> {
     fn weigh(&self, phase: &Phase, contributions: &mut [Rgb]) -> Rgb {
         self.weigh_scaled(phase, contributions, [1.0, 1.0])
+    }
+
+    #[inline]
+    fn weighs_records_alone(&self) -> bool {
+        true
+    }
+
+    #[inline(always)]
+    fn record_contribution(
+        &self,
+        split: SampleSplit,
+        from_bsdf: bool,
+        record: &SampleRecord,
+    ) -> Rgb {
+        self.contribution(Products::of(split, [1.0, 1.0]), from_bsdf, record)
     }
 }
 
@@ -287,7 +347,9 @@ pub fn assert_partition_of_unity(h: &dyn Heuristic) {
 /// Asserts that phases of at most `SCALAR_RECORDS` records, which are weighed record by record
 /// (`weigh_each`), get bit for bit what the lanes (`weigh_in_lanes`) give the same phase, each
 /// contribution and the estimate, with `h`'s weights, with and without factors, for lit, black
-/// and Dirac records, equal, zero and infinite products.
+/// and Dirac records, equal, zero and infinite products; and that, without factors, each lit
+/// record weighed alone ([`Weighting::record_contribution`]), as a packet's phases are summed
+/// while drawn, gets the same contribution, and their sum in order the same estimate.
 pub fn assert_small_phases_weigh_as_the_lanes_do(h: &dyn Heuristic) {
     let densities = [0.0f32, 1e-30, 0.37, 1.0, 2.5, 1e30, f32::INFINITY];
     let splits = [(1, 1), (2, 0), (0, 2), (1, 0), (0, 1)];
@@ -329,6 +391,19 @@ pub fn assert_small_phases_weigh_as_the_lanes_do(h: &dyn Heuristic) {
                 let case = format!("{records:?}, {split:?}, factors {factors:?}");
                 assert_eq!(bits(&each), bits(&lanes), "{case}");
                 assert_eq!(bits(&[value_each]), bits(&[value_lanes]), "{case}");
+                if factors == [1.0, 1.0] {
+                    // Weighed record by record as drawn, summed in the same order.
+                    let mut value = Rgb::ZERO;
+                    for (i, (r, c)) in records.iter().zip(&lanes).enumerate() {
+                        if !r.is_black() {
+                            let alone =
+                                weighting.record_contribution(split, i < n_bsdf as usize, r);
+                            assert_eq!(bits(&[alone]), bits(&[*c]), "record {i} of {case}");
+                            value += alone;
+                        }
+                    }
+                    assert_eq!(bits(&[value]), bits(&[value_lanes]), "{case}");
+                }
                 checked += 1;
             }
         }
