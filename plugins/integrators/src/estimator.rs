@@ -325,7 +325,7 @@ fn reached_record(s: &BsdfSample, le: Rgb, p_light: impl FnOnce() -> f32) -> Sam
 pub struct DeferredLookups(Vec<DeferredLookup>);
 
 struct DeferredLookup {
-    /// Index of the record in the phase's records.
+    /// Index of the record in the phase's records (or whatever its caller gave).
     record: usize,
     sample: BsdfSample,
     /// The sample's direction in world space.
@@ -373,9 +373,31 @@ impl DeferredLookups {
         records: &mut [SampleRecord],
         values: impl Iterator<Item = (Rgb, f32)>,
     ) {
+        self.drain(values, |index, record| records[index] = record);
+    }
+
+    /// Gives each lookup's record, from its emitter's `eval_pdf` taken in order from `values`,
+    /// to `each` with the index it was deferred with, and forgets them.
+    #[inline]
+    pub(crate) fn drain(
+        &mut self,
+        values: impl Iterator<Item = (Rgb, f32)>,
+        mut each: impl FnMut(usize, SampleRecord),
+    ) {
         for (d, (le, p_light)) in self.0.drain(..).zip(values) {
-            records[d.record] = reached_record(&d.sample, le, || p_light);
+            each(d.record, reached_record(&d.sample, le, || p_light));
         }
+    }
+
+    /// Leaves the record of BSDF sample `sample`, whose ray along `wi` reached the environment
+    /// unblocked, to the lookups, under `index`.
+    #[inline]
+    pub(crate) fn defer(&mut self, index: usize, sample: BsdfSample, wi: Vec3) {
+        self.0.push(DeferredLookup {
+            record: index,
+            sample,
+            wi,
+        });
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -527,26 +549,9 @@ impl<'a> BsdfRecords<'a> {
         continuation
     }
 
-    /// The record of BSDF sample `s`, as [`push_any`](Self::push_any) would append it once
-    /// its lookup, if any, is done.
+    /// What BSDF sample `s` gives, with the side test of the point's BSDF.
     #[inline(always)]
-    pub(crate) fn record_any(&self, s: Option<&BsdfSample>) -> SampleRecord {
-        self.record_now(self.outcome_any(s))
-    }
-
-    /// The record of BSDF sample `s` and the path's continuation along it, as
-    /// [`push_continuing`](Self::push_continuing) gives them once its lookup, if any, is done.
-    #[inline(always)]
-    pub(crate) fn record_continuing(
-        &self,
-        s: Option<&BsdfSample>,
-    ) -> (SampleRecord, Option<Continuation>) {
-        let (outcome, continuation) = self.continuing_outcome(s);
-        (self.record_now(outcome), continuation)
-    }
-
-    #[inline(always)]
-    fn outcome_any(&self, s: Option<&BsdfSample>) -> BsdfOutcome {
+    pub(crate) fn outcome_any(&self, s: Option<&BsdfSample>) -> BsdfOutcome {
         if self.sp.flags.transmission() {
             self.outcome::<true>(s)
         } else {
@@ -563,8 +568,13 @@ impl<'a> BsdfRecords<'a> {
         })
     }
 
+    /// What BSDF sample `s` gives, and the path's continuation along it, as
+    /// [`push_continuing`](Self::push_continuing) returns it.
     #[inline(always)]
-    fn continuing_outcome(&self, s: Option<&BsdfSample>) -> (BsdfOutcome, Option<Continuation>) {
+    pub(crate) fn continuing_outcome(
+        &self,
+        s: Option<&BsdfSample>,
+    ) -> (BsdfOutcome, Option<Continuation>) {
         let (scene, light, light_shape, from) =
             (self.scene, self.light, self.light_shape, &self.sp.hit);
         let mut traced = None;
@@ -601,11 +611,7 @@ impl<'a> BsdfRecords<'a> {
     ) {
         match (outcome, deferred) {
             (BsdfOutcome::Environment(sample, wi), Some(deferred)) => {
-                deferred.0.push(DeferredLookup {
-                    record: records.len(),
-                    sample,
-                    wi,
-                });
+                deferred.defer(records.len(), sample, wi);
                 records.push(SampleRecord::default());
             }
             (outcome, _) => records.push(self.record_now(outcome)),
@@ -614,7 +620,7 @@ impl<'a> BsdfRecords<'a> {
 
     /// `outcome`'s record, an environment's looked up now.
     #[inline(always)]
-    fn record_now(&self, outcome: BsdfOutcome) -> SampleRecord {
+    pub(crate) fn record_now(&self, outcome: BsdfOutcome) -> SampleRecord {
         match outcome {
             BsdfOutcome::Record(record) => record,
             BsdfOutcome::Environment(sample, wi) => {
@@ -678,7 +684,7 @@ impl<'a> BsdfRecords<'a> {
 /// What a BSDF sample gives a phase: its record, or, for a sample whose ray reached the
 /// environment unblocked, the sample and its direction, whose record the environment's lookup
 /// gives.
-enum BsdfOutcome {
+pub(crate) enum BsdfOutcome {
     Record(SampleRecord),
     Environment(BsdfSample, Vec3),
 }

@@ -11,8 +11,9 @@
 use crate::aovs::LightTally;
 use crate::batch::BatchScratch;
 use crate::estimator::{
-    BSDF_SAMPLE_NUMBERS, BsdfRecords, ContinuationSlot, DeferredLookups, Densities, SampleRecord,
-    draw_bsdf_samples, draw_continuing_bsdf_sample, draw_light_samples, light_record_any,
+    BSDF_SAMPLE_NUMBERS, BsdfOutcome, BsdfRecords, ContinuationSlot, DeferredLookups, Densities,
+    SampleRecord, draw_bsdf_samples, draw_continuing_bsdf_sample, draw_light_samples,
+    light_record_any,
 };
 use crate::phase::{Observer, Phase, PhaseRole, SampleSplit};
 use crate::shading_point::ShadingPoint;
@@ -25,6 +26,7 @@ use lumis_core::math::Rgb;
 use lumis_core::math::lanes::widest_width;
 use lumis_core::sampler::Sampler;
 use lumis_core::scene::Scene;
+use std::iter::Copied;
 
 /// Buffers for one phase's records and contributions, reused by each thread: no allocation
 /// per sample, and after the first phases none at all.
@@ -280,11 +282,13 @@ impl<'a> LightSampling<'a> {
     /// `phase` does.
     ///
     /// Where neither the observers nor the caller read the records
-    /// ([`Observer::reads_records`]), no AOV statistics are asked for, the weighting weighs
-    /// each record alone ([`Weighting::weighs_records_alone`]) and the light is not the
-    /// environment (whose BSDF samples' lookups are batched after the light samples), each
-    /// record is weighed and added to its estimate as it is drawn, in the order `weigh` sums
-    /// them, and none is kept: [`last_phase`](Self::last_phase) is then `None`.
+    /// ([`Observer::reads_records`]), no AOV statistics are asked for, and the weighting weighs
+    /// each record alone ([`Weighting::weighs_records_alone`]), each record is weighed and
+    /// added to its estimate as it is drawn, in the order `weigh` sums them, and none is kept:
+    /// [`last_phase`](Self::last_phase) is then `None`. For the environment, whose BSDF
+    /// samples' lookups are batched after the light samples, only where every phase draws at
+    /// most one sample per technique, whose two contributions give the same sum in either
+    /// order.
     // Inlined: called for packets and for `path`'s waves, it was no longer inlined into either,
     // and the packets' instructions rose 0.3 %.
     #[inline(always)]
@@ -306,11 +310,16 @@ impl<'a> LightSampling<'a> {
             return;
         };
         // Summed as drawn, no records kept, where nothing reads the records but a weighting
-        // that weighs each alone; an environment's BSDF samples keep their batched lookups.
+        // that weighs each alone. An environment's BSDF samples keep their batched lookups,
+        // after the light samples: their contributions are added last, which gives `weigh`'s
+        // sum bit for bit where a phase has at most one record per technique (two terms
+        // commute, and a sum from +0 is never -0).
         let summed_as_drawn = weighting.weighs_records_alone()
-            && scene.environment != Some(light)
             && !observers[..samplings.len()].iter().any(O::reads_records)
-            && samplings.iter().flatten().all(|s| s.tally.is_none());
+            && samplings.iter().flatten().all(|s| s.tally.is_none())
+            && (scene.environment != Some(light)
+                || splits.iter().all(|s| s.n_bsdf <= 1 && s.n_light <= 1));
+        let defer_environment = scene.environment == Some(light);
         if summed_as_drawn {
             for (sampling, value) in samplings.iter().zip(values.iter_mut()) {
                 if sampling.is_some() {
@@ -345,13 +354,21 @@ impl<'a> LightSampling<'a> {
                 let sampling = samplings[owner].as_mut().expect("an owner has a sampling");
                 let bsdf_records = BsdfRecords::new(scene, sampling.point, light, densities);
                 if summed_as_drawn {
-                    let record = match sampling.continuation.as_deref_mut() {
+                    let outcome = match sampling.continuation.as_deref_mut() {
                         Some(slot) if slot.is_wanted() => {
-                            let (record, continuation) = bsdf_records.record_continuing(s.as_ref());
+                            let (outcome, continuation) =
+                                bsdf_records.continuing_outcome(s.as_ref());
                             *slot = ContinuationSlot::Drawn(continuation);
-                            record
+                            outcome
                         }
-                        _ => bsdf_records.record_any(s.as_ref()),
+                        _ => bsdf_records.outcome_any(s.as_ref()),
+                    };
+                    let record = match outcome {
+                        BsdfOutcome::Environment(sample, wi) if defer_environment => {
+                            sampling.buffers.deferred.defer(owner, sample, wi);
+                            continue;
+                        }
+                        outcome => bsdf_records.record_now(outcome),
                     };
                     if !record.is_black() {
                         values[owner] +=
@@ -416,7 +433,23 @@ impl<'a> LightSampling<'a> {
                     values[owner] += weighting.record_contribution(splits[owner], false, &record);
                 }
             }
-            Self::look_up_together(scene, light, samplings, scratch);
+            if summed_as_drawn {
+                Self::look_up_together(scene, light, samplings, scratch, |buffers, found| {
+                    buffers.deferred.drain(found, |owner, record| {
+                        if !record.is_black() {
+                            values[owner] +=
+                                weighting.record_contribution(splits[owner], true, &record);
+                        }
+                    });
+                });
+            } else {
+                Self::look_up_together(scene, light, samplings, scratch, |buffers, found| {
+                    let PhaseBuffers {
+                        records, deferred, ..
+                    } = buffers;
+                    deferred.fill(records, found);
+                });
+            }
         });
         if summed_as_drawn {
             for sampling in samplings.iter_mut().flatten() {
@@ -435,12 +468,14 @@ impl<'a> LightSampling<'a> {
     /// The lookups that the BSDF samples of `samplings` (of light `light`) left to the end of
     /// their phases ([`DeferredLookups`]), in one batch call for all the points: an
     /// environment's conversions of directions to map coordinates run in lanes, where one
-    /// phase of the race scenes has one such sample or none.
+    /// phase of the race scenes has one such sample or none. `fill` is given the buffers of
+    /// each point that has lookups, with the batch's results, to take its own in order.
     fn look_up_together(
         scene: &Scene,
         light: usize,
         samplings: &mut [Option<LightSampling>],
         scratch: &mut BatchScratch,
+        mut fill: impl FnMut(&mut PhaseBuffers, &mut Copied<std::slice::Iter<'_, (Rgb, f32)>>),
     ) {
         if scene.environment != Some(light) {
             return;
@@ -454,12 +489,9 @@ impl<'a> LightSampling<'a> {
         }
         let mut values = scratch.look_up(scene.emitters[light].as_ref()).copied();
         for sampling in samplings.iter_mut().flatten() {
-            let PhaseBuffers {
-                records, deferred, ..
-            } = &mut *sampling.buffers;
             // Most points of a packet have none.
-            if !deferred.is_empty() {
-                deferred.fill(records, values.by_ref());
+            if !sampling.buffers.deferred.is_empty() {
+                fill(sampling.buffers, &mut values);
             }
         }
     }
