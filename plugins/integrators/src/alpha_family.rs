@@ -10,7 +10,7 @@
 use crate::allocation::Allocation;
 use crate::mis::SAMPLES;
 use crate::moments::PilotSamples;
-use crate::phase::{LightEstimate, Observer, PhaseRole, SampleSplit};
+use crate::phase::{EstimatesOnly, LightEstimate, Observer, PhaseRole, SampleSplit};
 use crate::sampling::LightSampling;
 use crate::weighting::Weighting;
 use lumis_core::geometry::PACKET_SIZE;
@@ -289,7 +289,7 @@ impl TwoPhases {
                 &alphas.map(|alpha| SampleSplit::new(alpha, count)),
                 role,
                 weighting,
-                &mut [(); PACKET_SIZE],
+                &mut [EstimatesOnly; PACKET_SIZE],
                 &mut second[..len],
             );
         }
