@@ -34,7 +34,7 @@ pub trait Weighting: Send + Sync {
 
     /// Whether each record's contribution depends on that record alone (a per-sample
     /// heuristic), so that [`record_contribution`](Self::record_contribution) gives it: a phase
-    /// that no observer sees is then summed as its records are drawn, none kept
+    /// whose records nobody reads is then summed as they are drawn, none kept
     /// ([`LightSampling::phases_together`]). The default, false, for weightings that need the
     /// whole phase.
     ///
